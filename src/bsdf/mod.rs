@@ -1,0 +1,103 @@
+//! Scattering math, free of scenes and batches.
+//!
+//! Conventions (used everywhere in the crate):
+//! - directions are in the local shading frame, where the normal is `+z`;
+//! - `wo` points toward the previous path vertex and `wi` is the sampled direction, both
+//!   pointing away from the surface;
+//! - `eval` returns the BSDF value f (without the cosine), `pdf` the solid-angle density of
+//!   `sample`, and a sample's `weight` is `f |cos wi| / pdf` (for delta lobes, the lobe's
+//!   throughput factor);
+//! - `eta` is the relative index of refraction across an interface, transmitted over
+//!   incident side.
+
+pub mod dielectric;
+pub mod lambert;
+pub mod mirror;
+
+pub use dielectric::FresnelModel;
+
+use crate::math::{Rgb, Vec2, Vec3A};
+
+/// A render-side scattering model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bsdf {
+    /// Ideal diffuse reflection (two-sided: it reflects on the side `wo` is on).
+    Lambertian {
+        /// Hemispherical reflectance.
+        albedo: Rgb,
+    },
+    /// Perfect specular reflection.
+    Mirror {
+        /// Reflectance.
+        tint: Rgb,
+    },
+    /// Smooth dielectric; `+z` is the outside.
+    Dielectric {
+        /// Inside over outside index of refraction.
+        ior: f32,
+        /// Fresnel equations in use.
+        fresnel: FresnelModel,
+        /// Colour filter on both lobes.
+        tint: Rgb,
+    },
+}
+
+/// A sampled direction with its path-throughput factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    /// Sampled direction, local frame.
+    pub wi: Vec3A,
+    /// `f |cos wi| / pdf`: what the path throughput is multiplied by.
+    pub weight: Rgb,
+    /// Solid-angle density of `wi` (for delta lobes, the discrete probability of the lobe).
+    pub pdf: f32,
+    /// Whether the sample came from a delta lobe (mirror or smooth glass).
+    pub is_delta: bool,
+}
+
+impl Bsdf {
+    /// Whether every lobe is a delta distribution (no light sampling is possible).
+    #[inline]
+    pub fn is_delta(&self) -> bool {
+        !matches!(self, Bsdf::Lambertian { .. })
+    }
+
+    /// Whether the surface reflects nothing at all (a path ends on it).
+    #[inline]
+    pub fn is_black(&self) -> bool {
+        match *self {
+            Bsdf::Lambertian { albedo } => albedo == Rgb::ZERO,
+            Bsdf::Mirror { tint } | Bsdf::Dielectric { tint, .. } => tint == Rgb::ZERO,
+        }
+    }
+
+    /// BSDF value for a pair of directions (zero for delta lobes).
+    #[inline]
+    pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
+        match *self {
+            Bsdf::Lambertian { albedo } => lambert::eval(albedo, wo, wi),
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => Rgb::ZERO,
+        }
+    }
+
+    /// Solid-angle density with which `sample` returns `wi` (zero for delta lobes).
+    #[inline]
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        match *self {
+            Bsdf::Lambertian { .. } => lambert::pdf(wo, wi),
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => 0.0,
+        }
+    }
+
+    /// Samples `wi` from `u_lobe` (lobe choice) and `u` (direction).
+    #[inline]
+    pub fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        match *self {
+            Bsdf::Lambertian { albedo } => lambert::sample(albedo, wo, u),
+            Bsdf::Mirror { tint } => mirror::sample(tint, wo),
+            Bsdf::Dielectric { ior, fresnel, tint } => {
+                dielectric::sample(ior, fresnel, tint, wo, u_lobe)
+            }
+        }
+    }
+}

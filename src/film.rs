@@ -1,0 +1,98 @@
+//! The film: per-pixel sums of sample radiance, and the resolved image.
+
+use crate::math::Rgb;
+
+/// Accumulated samples. Sums are f64 so that long renders do not lose precision, and each
+/// pixel's samples are added in sample order, so the sums are bit-reproducible.
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    sum: Vec<[f64; 3]>,
+    samples: Vec<u32>,
+    /// Samples discarded because their radiance was NaN or infinite.
+    pub rejected_samples: u64,
+}
+
+impl Film {
+    /// An empty film.
+    pub fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Film {
+            width,
+            height,
+            sum: vec![[0.0; 3]; n],
+            samples: vec![0; n],
+            rejected_samples: 0,
+        }
+    }
+
+    /// Adds one sample to a pixel; a NaN or infinite sample is counted and discarded.
+    #[inline]
+    pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
+        if !radiance.is_finite() {
+            self.rejected_samples += 1;
+            return;
+        }
+        let s = &mut self.sum[pixel as usize];
+        s[0] += radiance.x as f64;
+        s[1] += radiance.y as f64;
+        s[2] += radiance.z as f64;
+        self.samples[pixel as usize] += 1;
+    }
+
+    /// Fewest samples any pixel holds.
+    pub fn min_samples(&self) -> u32 {
+        self.samples.iter().copied().min().unwrap_or(0)
+    }
+
+    /// The mean radiance per pixel, row-major from the top-left.
+    pub fn resolve(&self) -> Image {
+        let pixels = self
+            .sum
+            .iter()
+            .zip(&self.samples)
+            .map(|(s, &n)| {
+                let inv = if n > 0 { 1.0 / n as f64 } else { 0.0 };
+                Rgb::new(
+                    (s[0] * inv) as f32,
+                    (s[1] * inv) as f32,
+                    (s[2] * inv) as f32,
+                )
+            })
+            .collect();
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels,
+        }
+    }
+}
+
+/// A linear RGB image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Row-major pixels, row 0 at the top.
+    pub pixels: Vec<Rgb>,
+}
+
+impl Image {
+    /// Pixel at column `x`, row `y`.
+    pub fn at(&self, x: u32, y: u32) -> Rgb {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// Mean over all pixels.
+    pub fn mean(&self) -> Rgb {
+        let s = self.pixels.iter().fold([0.0f64; 3], |a, p| {
+            [a[0] + p.x as f64, a[1] + p.y as f64, a[2] + p.z as f64]
+        });
+        let n = self.pixels.len().max(1) as f64;
+        Rgb::new((s[0] / n) as f32, (s[1] / n) as f32, (s[2] / n) as f32)
+    }
+}

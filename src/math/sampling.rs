@@ -1,0 +1,161 @@
+//! Warps from uniform numbers to distributions, each paired with its density.
+//! They take `u` in [0,1)^n and never an RNG, so tests can integrate them exactly.
+
+use super::{Vec2, Vec3A};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// Cosine-weighted direction on the +z hemisphere (Malley's method on a concentric disk).
+#[inline]
+pub fn sample_cosine_hemisphere(u: Vec2) -> Vec3A {
+    let d = sample_concentric_disk(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3A::new(d.x, d.y, z)
+}
+
+/// Solid-angle density of [`sample_cosine_hemisphere`] for a local direction.
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform point on the unit disk, by Shirley and Chiu's concentric map (keeps strata compact).
+#[inline]
+pub fn sample_concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, PI / 4.0 * (o.y / o.x))
+    } else {
+        (o.y, PI / 2.0 - PI / 4.0 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform barycentrics (b1, b2) on a triangle; the point is `v0 + b1 e1 + b2 e2`.
+/// Area density is `1 / area`.
+#[inline]
+pub fn sample_triangle(u: Vec2) -> Vec2 {
+    // Heitz's low-distortion map: no square root, no fold discontinuity.
+    if u.y > u.x {
+        let b1 = u.x / 2.0;
+        Vec2::new(b1, u.y - b1)
+    } else {
+        let b2 = u.y / 2.0;
+        Vec2::new(u.x - b2, b2)
+    }
+}
+
+/// Uniform direction on the unit sphere; density `1 / (4 pi)`.
+#[inline]
+pub fn sample_uniform_sphere(u: Vec2) -> Vec3A {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Index `i` with probability `(cdf[i] - cdf[i-1]) / cdf.last()`, for a non-decreasing `cdf`
+/// whose last entry is the total. Binary search: O(log n).
+#[inline]
+pub fn sample_discrete(cdf: &[f32], u: f32) -> usize {
+    debug_assert!(!cdf.is_empty());
+    let target = u * cdf[cdf.len() - 1];
+    cdf.partition_point(|&c| c <= target).min(cdf.len() - 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A stratified grid of `n * n` points in [0,1)^2.
+    fn grid(n: usize) -> impl Iterator<Item = Vec2> {
+        (0..n * n).map(move |i| {
+            Vec2::new(
+                ((i % n) as f32 + 0.5) / n as f32,
+                ((i / n) as f32 + 0.5) / n as f32,
+            )
+        })
+    }
+
+    #[test]
+    fn cosine_hemisphere_is_normalised_and_matches_its_pdf() {
+        // Integral of pdf over the hemisphere = 1, and E[f/pdf] of f = cos gives pi (exact: cos/pdf = pi).
+        let n = 400;
+        let mut mean_cos = 0.0f64;
+        for u in grid(n) {
+            let w = sample_cosine_hemisphere(u);
+            assert!((w.length() - 1.0).abs() < 1e-4 && w.z >= 0.0);
+            mean_cos += w.z as f64;
+        }
+        mean_cos /= (n * n) as f64;
+        // E[cos] under p = cos/pi equals 2/3.
+        assert!((mean_cos - 2.0 / 3.0).abs() < 1e-3, "{mean_cos}");
+        // Histogram check: the fraction with cos > 0.5 is 1 - 0.25 = 0.75.
+        let frac = grid(n)
+            .filter(|&u| sample_cosine_hemisphere(u).z > 0.5)
+            .count() as f64
+            / (n * n) as f64;
+        assert!((frac - 0.75).abs() < 2e-3, "{frac}");
+        // Numerical integral of the pdf over the hemisphere (midpoint rule in theta, phi).
+        let nt = 256;
+        let mut integral = 0.0f64;
+        for i in 0..nt {
+            let theta = (i as f64 + 0.5) / nt as f64 * std::f64::consts::FRAC_PI_2;
+            integral += cosine_hemisphere_pdf(theta.cos() as f32) as f64
+                * theta.sin()
+                * (std::f64::consts::FRAC_PI_2 / nt as f64)
+                * (2.0 * std::f64::consts::PI);
+        }
+        assert!((integral - 1.0).abs() < 1e-3, "{integral}");
+    }
+
+    #[test]
+    fn triangle_samples_are_uniform() {
+        // Uniform on the triangle: E[b1] = E[b2] = 1/3, and every sample inside.
+        let n = 300;
+        let (mut s1, mut s2) = (0.0f64, 0.0f64);
+        let mut sub = 0usize; // fraction in the sub-triangle b1 > 1/2 has area 1/4
+        for u in grid(n) {
+            let b = sample_triangle(u);
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0);
+            s1 += b.x as f64;
+            s2 += b.y as f64;
+            sub += (b.x > 0.5) as usize;
+        }
+        let m = (n * n) as f64;
+        assert!((s1 / m - 1.0 / 3.0).abs() < 1e-3 && (s2 / m - 1.0 / 3.0).abs() < 1e-3);
+        assert!((sub as f64 / m - 0.25).abs() < 2e-3);
+    }
+
+    #[test]
+    fn sphere_samples_are_uniform() {
+        let n = 300;
+        let m = (n * n) as f64;
+        let mut mean = Vec3A::ZERO;
+        let mut cap = 0usize; // z > 0.5 is a cap of area fraction 1/4
+        for u in grid(n) {
+            let w = sample_uniform_sphere(u);
+            assert!((w.length() - 1.0).abs() < 1e-4);
+            mean += w;
+            cap += (w.z > 0.5) as usize;
+        }
+        assert!((mean / m as f32).length() < 1e-3);
+        assert!((cap as f64 / m - 0.25).abs() < 2e-3);
+    }
+
+    #[test]
+    fn discrete_sampling_follows_weights() {
+        let cdf = [1.0, 1.0, 4.0, 8.0]; // weights 1, 0, 3, 4
+        let mut counts = [0usize; 4];
+        let n = 80_000;
+        for i in 0..n {
+            counts[sample_discrete(&cdf, (i as f32 + 0.5) / n as f32)] += 1;
+        }
+        assert_eq!(counts[1], 0, "zero-weight entries are never chosen");
+        for (c, w) in counts.iter().zip([1.0, 0.0, 3.0, 4.0]) {
+            assert!((*c as f64 / n as f64 - w / 8.0).abs() < 1e-3);
+        }
+    }
+}

@@ -1,0 +1,107 @@
+//! ECS components of a scene. Geometry is stored in object space; [`Transform`] places it.
+
+pub use crate::bsdf::FresnelModel;
+use crate::math::{Affine3A, Rgb, Vec2, Vec3};
+
+/// Object-to-world placement of an entity (`world_from_object`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform(pub Affine3A);
+
+impl Default for Transform {
+    fn default() -> Self {
+        Transform(Affine3A::IDENTITY)
+    }
+}
+
+/// Human-readable name of an entity, used in error messages and statistics.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Name(pub String);
+
+/// An indexed triangle mesh in object space.
+///
+/// A triangle's front face is the side from which `v0, v1, v2` appear counter-clockwise;
+/// its geometric normal is `normalize((v1 - v0) x (v2 - v0))`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions, object space.
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals (object space), or empty for flat shading.
+    pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates, or empty.
+    pub uvs: Vec<Vec2>,
+    /// Triangles as three indices into the vertex arrays.
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// An analytic sphere of the given radius centred on the entity's origin. Its transform may
+/// translate, rotate and scale uniformly; the outward side is the front.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    /// Radius in object units (> 0).
+    pub radius: f32,
+}
+
+/// How a surface scatters light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Material {
+    /// Ideal diffuse reflector with the given albedo. Albedo 0 absorbs everything, which is
+    /// how light sources that "reflect nothing" are written.
+    Lambertian {
+        /// Hemispherical reflectance, linear RGB in [0, 1].
+        albedo: Rgb,
+    },
+    /// Perfect specular reflector; `tint` scales the reflected radiance.
+    Mirror {
+        /// Reflectance, linear RGB (1 = ideal mirror).
+        tint: Rgb,
+    },
+    /// Smooth dielectric interface (glass) between the outside (vacuum/air) and an inside of
+    /// refractive index `ior`; the front face (geometric normal side) is the outside.
+    Dielectric {
+        /// Index of refraction of the inside relative to the outside.
+        ior: f32,
+        /// Fresnel equations used to split reflection and refraction.
+        fresnel: FresnelModel,
+        /// Scales both reflected and transmitted radiance (1 = clear glass).
+        tint: Rgb,
+    },
+}
+
+/// Surface emission: the entity is an area light of constant radiance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emitter {
+    /// Emitted radiance, linear RGB (W sr^-1 m^-2 per unit of the scene's scale).
+    pub radiance: Rgb,
+    /// Whether the back face emits too; by default only the front face does.
+    pub two_sided: bool,
+}
+
+/// A pinhole camera in world space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Centre of projection.
+    pub eye: Vec3,
+    /// Viewing direction (unit).
+    pub forward: Vec3,
+    /// Up direction of the image (unit, orthogonal to `forward`).
+    pub up: Vec3,
+    /// Vertical field of view in radians.
+    pub vfov: f32,
+    /// Width / height the camera was made for, if it dictates one.
+    pub aspect_ratio: Option<f32>,
+}
+
+impl Camera {
+    /// A camera at `eye` looking at `target`, with `up` projected to be orthogonal.
+    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3, vfov: f32) -> Self {
+        let forward = (target - eye).normalize();
+        let right = forward.cross(up).normalize();
+        Camera {
+            eye,
+            forward,
+            up: right.cross(forward),
+            vfov,
+            aspect_ratio: None,
+        }
+    }
+}

@@ -1,0 +1,544 @@
+//! The TOML scene format: cameras, named materials, and the seed's primitives (triangle,
+//! quad, polygon, tetrahedron, sphere) with transforms. A file may include others; the
+//! including file's camera and `[render]` settings win, its materials replace same-named ones,
+//! and shapes accumulate. The README documents the format with `scenes/room.toml`.
+
+use super::{BUILTIN_ROOM, Scene, SceneDefaults};
+use crate::error::{Error, Result};
+use crate::math::{Affine3A, Quat, Vec3};
+use crate::scene::{Camera, Emitter, FresnelModel, Material, Mesh, Name, Sphere, Transform};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use toml::Spanned;
+
+/// Include target that names the built-in seed room instead of a file.
+const BUILTIN_ROOM_NAME: &str = "builtin:room";
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    include: Vec<Spanned<String>>,
+    camera: Option<Spanned<CameraDef>>,
+    render: Option<SceneDefaults>,
+    #[serde(default)]
+    materials: BTreeMap<String, Spanned<MaterialDef>>,
+    #[serde(default, rename = "shape")]
+    shapes: Vec<Spanned<ShapeDef>>,
+}
+
+/// `[camera]`: a pinhole looking from `eye` at `look_at`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDef {
+    eye: [f32; 3],
+    look_at: [f32; 3],
+    #[serde(default = "z_up")]
+    up: [f32; 3],
+    /// Vertical field of view in degrees.
+    vfov: f32,
+}
+
+fn z_up() -> [f32; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+fn one() -> [f32; 3] {
+    [1.0; 3]
+}
+
+/// `[materials.NAME]`, tagged by `type`.
+#[derive(Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+enum MaterialDef {
+    Diffuse {
+        albedo: [f32; 3],
+    },
+    Mirror {
+        #[serde(default = "one")]
+        tint: [f32; 3],
+    },
+    Dielectric {
+        ior: f32,
+        #[serde(default)]
+        fresnel: FresnelDef,
+        #[serde(default = "one")]
+        tint: [f32; 3],
+    },
+}
+
+#[derive(Deserialize, Default, Clone, Copy)]
+#[serde(rename_all = "snake_case")]
+enum FresnelDef {
+    #[default]
+    Exact,
+    Schlick,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "snake_case")]
+enum ShapeKind {
+    Triangle,
+    Quad,
+    Polygon,
+    Tetrahedron,
+    Sphere,
+}
+
+/// `[[shape]]`: one primitive, its material, optional emission and transform.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShapeDef {
+    #[serde(rename = "type")]
+    kind: ShapeKind,
+    name: Option<String>,
+    material: Spanned<String>,
+    #[serde(default)]
+    vertices: Vec<[f32; 3]>,
+    center: Option<[f32; 3]>,
+    radius: Option<f32>,
+    /// Emitted radiance; makes the shape an area light.
+    emission: Option<[f32; 3]>,
+    #[serde(default)]
+    two_sided: bool,
+    #[serde(default)]
+    translate: Option<[f32; 3]>,
+    /// Degrees about x, then y, then z.
+    #[serde(default)]
+    rotate: Option<[f32; 3]>,
+    #[serde(default)]
+    scale: Option<ScaleDef>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(untagged)]
+enum ScaleDef {
+    Uniform(f32),
+    PerAxis([f32; 3]),
+}
+
+/// Where a definition came from, for error messages.
+#[derive(Clone)]
+struct Source {
+    path: PathBuf,
+    text: Arc<str>,
+}
+
+impl Source {
+    fn error(&self, offset: usize, message: impl Into<String>) -> Error {
+        Error::input_at(&self.path, &self.text, offset, message)
+    }
+}
+
+/// Everything gathered from a file and its includes, before entities are spawned.
+#[derive(Default)]
+struct Gathered {
+    camera: Option<(Source, Spanned<CameraDef>)>,
+    defaults: SceneDefaults,
+    materials: BTreeMap<String, Material>,
+    shapes: Vec<(Source, Spanned<ShapeDef>)>,
+}
+
+/// Loads a TOML scene from `text`, which was read from `path`.
+pub fn load(path: &Path, text: &str) -> Result<Scene> {
+    let mut gathered = Gathered::default();
+    let mut stack = Vec::new();
+    gather(
+        Source {
+            path: path.to_path_buf(),
+            text: text.into(),
+        },
+        &mut stack,
+        &mut gathered,
+    )?;
+    spawn(gathered, path)
+}
+
+fn gather(source: Source, stack: &mut Vec<PathBuf>, out: &mut Gathered) -> Result<()> {
+    let file: SceneFile = toml::from_str(&source.text).map_err(|e| {
+        let offset = e.span().map_or(0, |s| s.start);
+        source.error(offset, toml_message(&e))
+    })?;
+    stack.push(canonical(&source.path));
+
+    for include in &file.include {
+        let (child_path, child_text) = if include.get_ref() == BUILTIN_ROOM_NAME {
+            (
+                PathBuf::from(BUILTIN_ROOM_NAME),
+                Arc::<str>::from(BUILTIN_ROOM),
+            )
+        } else {
+            let base = source.path.parent().unwrap_or(Path::new("."));
+            let child = base.join(include.get_ref());
+            if !child.is_file() {
+                return Err(source.error(
+                    include.span().start,
+                    format!("included file '{}' does not exist", child.display()),
+                ));
+            }
+            let text = std::fs::read_to_string(&child).map_err(|e| {
+                source.error(
+                    include.span().start,
+                    format!("cannot read included file '{}': {e}", child.display()),
+                )
+            })?;
+            (child, text.into())
+        };
+        if stack.contains(&canonical(&child_path)) {
+            return Err(source.error(
+                include.span().start,
+                format!("include cycle: '{}' includes itself", child_path.display()),
+            ));
+        }
+        gather(
+            Source {
+                path: child_path,
+                text: child_text,
+            },
+            stack,
+            out,
+        )?;
+    }
+
+    if let Some(camera) = file.camera {
+        out.camera = Some((source.clone(), camera));
+    }
+    if let Some(render) = file.render {
+        out.defaults = out.defaults.overridden_by(render);
+    }
+    for (name, def) in file.materials {
+        let material = material_from_def(def.get_ref())
+            .map_err(|m| source.error(def.span().start, format!("material '{name}': {m}")))?;
+        out.materials.insert(name, material);
+    }
+    out.shapes
+        .extend(file.shapes.into_iter().map(|s| (source.clone(), s)));
+    stack.pop();
+    Ok(())
+}
+
+fn canonical(path: &Path) -> PathBuf {
+    std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+}
+
+/// toml's message without its own rendering of the source line (we add line and column).
+fn toml_message(e: &toml::de::Error) -> String {
+    e.message().trim_end_matches('\n').to_string()
+}
+
+fn finite(values: &[f32], what: &str) -> std::result::Result<(), String> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(format!("{what} must be finite numbers"))
+    }
+}
+
+fn material_from_def(def: &MaterialDef) -> std::result::Result<Material, String> {
+    Ok(match *def {
+        MaterialDef::Diffuse { albedo } => {
+            finite(&albedo, "albedo")?;
+            if albedo.iter().any(|&a| !(0.0..=1.0).contains(&a)) {
+                return Err("albedo components must lie in [0, 1]".into());
+            }
+            Material::Lambertian {
+                albedo: Vec3::from(albedo),
+            }
+        }
+        MaterialDef::Mirror { tint } => {
+            finite(&tint, "tint")?;
+            Material::Mirror {
+                tint: Vec3::from(tint),
+            }
+        }
+        MaterialDef::Dielectric { ior, fresnel, tint } => {
+            finite(&[ior], "ior")?;
+            finite(&tint, "tint")?;
+            if ior <= 0.0 {
+                return Err(format!("ior must be positive, got {ior}"));
+            }
+            let fresnel = match fresnel {
+                FresnelDef::Exact => FresnelModel::Exact,
+                FresnelDef::Schlick => FresnelModel::Schlick,
+            };
+            Material::Dielectric {
+                ior,
+                fresnel,
+                tint: Vec3::from(tint),
+            }
+        }
+    })
+}
+
+fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
+    let mut world = hecs::World::new();
+    let Some((camera_source, camera)) = gathered.camera else {
+        return Err(Error::input(path, None, "the scene has no [camera]"));
+    };
+    let camera_span = camera.span().start;
+    let c = camera.into_inner();
+    let cam_err = |m: String| camera_source.error(camera_span, format!("camera: {m}"));
+    for (v, what) in [(&c.eye, "eye"), (&c.look_at, "look_at"), (&c.up, "up")] {
+        finite(v, what).map_err(cam_err)?;
+    }
+    finite(&[c.vfov], "vfov").map_err(cam_err)?;
+    if !(c.vfov > 0.0 && c.vfov < 180.0) {
+        return Err(cam_err(format!(
+            "vfov must lie in (0, 180) degrees, got {}",
+            c.vfov
+        )));
+    }
+    let (eye, target, up) = (Vec3::from(c.eye), Vec3::from(c.look_at), Vec3::from(c.up));
+    if (target - eye).length() == 0.0
+        || (target - eye).cross(up).length() < 1e-6 * (target - eye).length() * up.length()
+    {
+        return Err(cam_err(
+            "look_at must differ from eye and up must not be parallel to the view direction".into(),
+        ));
+    }
+    world.spawn((
+        Name("camera".into()),
+        Camera::look_at(eye, target, up, c.vfov.to_radians()),
+    ));
+
+    for (index, (source, shape)) in gathered.shapes.iter().enumerate() {
+        let span = shape.span().start;
+        let def = shape.get_ref();
+        let name = def
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("{:?} {index}", def.kind).to_lowercase());
+        let err = |m: String| source.error(span, format!("shape '{name}': {m}"));
+        let material = *gathered
+            .materials
+            .get(def.material.get_ref())
+            .ok_or_else(|| {
+                let known: Vec<&str> = gathered.materials.keys().map(String::as_str).collect();
+                source.error(
+                    def.material.span().start,
+                    format!(
+                        "unknown material '{}' (known: {})",
+                        def.material.get_ref(),
+                        known.join(", ")
+                    ),
+                )
+            })?;
+        let transform = Transform(shape_transform(def).map_err(err)?);
+        let emitter = match def.emission {
+            Some(e) => {
+                finite(&e, "emission").map_err(err)?;
+                if e.iter().any(|&x| x < 0.0) {
+                    return Err(err("emission must not be negative".into()));
+                }
+                Some(Emitter {
+                    radiance: Vec3::from(e),
+                    two_sided: def.two_sided,
+                })
+            }
+            None => None,
+        };
+        let entity = if def.kind == ShapeKind::Sphere {
+            let (Some(center), Some(radius)) = (def.center, def.radius) else {
+                return Err(err("a sphere needs `center` and `radius`".into()));
+            };
+            finite(&center, "center").map_err(err)?;
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(err(format!(
+                    "radius must be a positive number, got {radius}"
+                )));
+            }
+            if !def.vertices.is_empty() {
+                return Err(err(
+                    "a sphere takes `center` and `radius`, not `vertices`".into()
+                ));
+            }
+            let placed = Transform(transform.0 * Affine3A::from_translation(Vec3::from(center)));
+            world.spawn((Name(name.clone()), placed, Sphere { radius }, material))
+        } else {
+            if def.center.is_some() || def.radius.is_some() {
+                return Err(err(format!(
+                    "a {:?} takes `vertices`, not `center`/`radius`",
+                    def.kind
+                )
+                .to_lowercase()));
+            }
+            let mesh = mesh_from_vertices(def.kind, &def.vertices).map_err(err)?;
+            world.spawn((Name(name.clone()), transform, mesh, material))
+        };
+        if let Some(emitter) = emitter {
+            world
+                .insert_one(entity, emitter)
+                .expect("entity was just spawned");
+        }
+    }
+    Ok(Scene {
+        world,
+        defaults: gathered.defaults,
+    })
+}
+
+/// `translate * rotate_z * rotate_y * rotate_x * scale`: rotations apply about x first.
+fn shape_transform(def: &ShapeDef) -> std::result::Result<Affine3A, String> {
+    let translate = def.translate.unwrap_or([0.0; 3]);
+    let rotate = def.rotate.unwrap_or([0.0; 3]);
+    let scale = match def.scale {
+        None => [1.0; 3],
+        Some(ScaleDef::Uniform(s)) => [s; 3],
+        Some(ScaleDef::PerAxis(s)) => s,
+    };
+    finite(&translate, "translate")?;
+    finite(&rotate, "rotate")?;
+    finite(&scale, "scale")?;
+    if scale.contains(&0.0) {
+        return Err("scale must not be zero".into());
+    }
+    let [rx, ry, rz] = rotate.map(f32::to_radians);
+    let rotation =
+        Quat::from_rotation_z(rz) * Quat::from_rotation_y(ry) * Quat::from_rotation_x(rx);
+    Ok(Affine3A::from_scale_rotation_translation(
+        Vec3::from(scale),
+        rotation,
+        Vec3::from(translate),
+    ))
+}
+
+/// Triangulates the vertex list of a flat primitive; the winding of `vertices` sets the front.
+fn mesh_from_vertices(kind: ShapeKind, vertices: &[[f32; 3]]) -> std::result::Result<Mesh, String> {
+    let expected = match kind {
+        ShapeKind::Triangle => Some(3),
+        ShapeKind::Quad => Some(4),
+        ShapeKind::Tetrahedron => Some(4),
+        ShapeKind::Polygon => None,
+        ShapeKind::Sphere => unreachable!("spheres are not meshes"),
+    };
+    if let Some(n) = expected.filter(|&n| n != vertices.len()) {
+        return Err(format!(
+            "needs exactly {n} vertices, got {}",
+            vertices.len()
+        ));
+    }
+    if vertices.len() < 3 {
+        return Err(format!("needs at least 3 vertices, got {}", vertices.len()));
+    }
+    for v in vertices {
+        finite(v, "vertices")?;
+    }
+    let positions: Vec<Vec3> = vertices.iter().map(|&v| Vec3::from(v)).collect();
+    let indices = if kind == ShapeKind::Tetrahedron {
+        tetrahedron_faces(&positions)?
+    } else {
+        convex_fan(&positions)?
+    };
+    Ok(Mesh {
+        positions,
+        indices,
+        ..Default::default()
+    })
+}
+
+/// Fan triangulation of a planar convex polygon. Anything else is refused, because a fan
+/// would silently render a concave polygon wrong.
+fn convex_fan(p: &[Vec3]) -> std::result::Result<Vec<[u32; 3]>, String> {
+    let n = p.len();
+    let mut normal = Vec3::ZERO; // Newell's method: robust polygon normal
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        normal += Vec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    let scale = p
+        .iter()
+        .map(|v| v.abs().max_element())
+        .fold(1e-12f32, f32::max);
+    if normal.length() <= 1e-6 * scale * scale {
+        return Err("vertices are degenerate (zero area)".into());
+    }
+    let normal = normal.normalize();
+    for i in 0..n {
+        let (a, b, c) = (p[i], p[(i + 1) % n], p[(i + 2) % n]);
+        if (b - a).cross(c - b).dot(normal) < -1e-6 * scale * scale {
+            return Err("polygon is not convex (or its vertices are not in order)".into());
+        }
+        if (p[i] - p[0]).dot(normal).abs() > 1e-4 * scale {
+            return Err("polygon vertices are not in one plane".into());
+        }
+    }
+    Ok((1..n as u32 - 1).map(|i| [0, i, i + 1]).collect())
+}
+
+/// The four faces of a tetrahedron, each wound so that its front faces outward.
+fn tetrahedron_faces(p: &[Vec3]) -> std::result::Result<Vec<[u32; 3]>, String> {
+    let volume = (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]);
+    if volume.abs() < 1e-9 {
+        return Err("tetrahedron vertices are coplanar (zero volume)".into());
+    }
+    let faces = [[0u32, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]];
+    Ok(faces
+        .iter()
+        .map(|&[a, b, c]| {
+            let opposite = p[6 - (a + b + c) as usize];
+            let (va, vb, vc) = (p[a as usize], p[b as usize], p[c as usize]);
+            if (vb - va).cross(vc - va).dot(opposite - va) > 0.0 {
+                [a, c, b]
+            } else {
+                [a, b, c]
+            }
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tetrahedron_faces_point_outward() {
+        let p = [
+            Vec3::new(5.5, 2.2, -5.0),
+            Vec3::new(4.461, 0.4, -5.0),
+            Vec3::new(6.539, 0.4, -5.0),
+            Vec3::new(5.5, 1.0, -3.0),
+        ];
+        let centroid = p.iter().copied().sum::<Vec3>() / 4.0;
+        for [a, b, c] in tetrahedron_faces(&p).unwrap() {
+            let (va, vb, vc) = (p[a as usize], p[b as usize], p[c as usize]);
+            assert!((vb - va).cross(vc - va).dot(va - centroid) > 0.0);
+        }
+    }
+
+    #[test]
+    fn concave_polygons_are_refused() {
+        let l = [
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],
+            [1.0, 0.2, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        assert!(
+            mesh_from_vertices(ShapeKind::Polygon, &l)
+                .unwrap_err()
+                .contains("convex")
+        );
+        let hex = [
+            [-3.0, 0.0, 0.0],
+            [0.0, -6.0, 0.0],
+            [10.0, -6.0, 0.0],
+            [13.0, 0.0, 0.0],
+            [10.0, 6.0, 0.0],
+            [0.0, 6.0, 0.0],
+        ];
+        assert_eq!(
+            mesh_from_vertices(ShapeKind::Polygon, &hex)
+                .unwrap()
+                .indices
+                .len(),
+            4
+        );
+    }
+}

@@ -1,0 +1,138 @@
+//! Structure-of-arrays work buffers passed between the stages. They are allocated once per
+//! render and reused for every bounce and batch; index `i` of every buffer of a bounce refers
+//! to the same live path.
+
+use crate::film::Film;
+use crate::math::{Rgb, Vec2, Vec3A};
+
+/// Rays to intersect, one per live path.
+#[derive(Default)]
+pub struct RayBatch {
+    /// Ray origin, world space (already offset off the surface it leaves).
+    pub origin: Vec<Vec3A>,
+    /// Unit direction, world space.
+    pub direction: Vec<Vec3A>,
+}
+
+impl RayBatch {
+    /// Number of rays.
+    pub fn len(&self) -> usize {
+        self.origin.len()
+    }
+
+    /// Whether there are no rays.
+    pub fn is_empty(&self) -> bool {
+        self.origin.is_empty()
+    }
+
+    /// Resizes every column to `n` (new entries are placeholders the next stage overwrites).
+    pub fn resize(&mut self, n: usize) {
+        self.origin.resize(n, Vec3A::ZERO);
+        self.direction.resize(n, Vec3A::Z);
+    }
+}
+
+/// Marks a ray that hit nothing in [`HitBatch::slot`].
+pub const NO_HIT: u32 = u32::MAX;
+
+/// Closest hits of a [`RayBatch`].
+#[derive(Default)]
+pub struct HitBatch {
+    /// Distance along the ray.
+    pub t: Vec<f32>,
+    /// BVH slot of the primitive hit, or [`NO_HIT`].
+    pub slot: Vec<u32>,
+    /// Barycentrics `(u, v)` of a triangle hit (unused for spheres).
+    pub barycentric: Vec<Vec2>,
+}
+
+/// Per-path state that lives across bounces.
+#[derive(Default)]
+pub struct PathState {
+    /// Pixel index (row-major) the path contributes to.
+    pub pixel: Vec<u32>,
+    /// Random-number key of the path (see `math::rng`).
+    pub rng_key: Vec<u64>,
+    /// Product of BSDF weights so far.
+    pub throughput: Vec<Rgb>,
+    /// Radiance gathered so far.
+    pub radiance: Vec<Rgb>,
+    /// Whether emission found by the next hit is counted: true after the camera and after
+    /// delta bounces, where next-event estimation could not have counted it.
+    pub count_emission: Vec<bool>,
+    /// Whether the path continues after this bounce (set by shading).
+    pub alive: Vec<bool>,
+}
+
+impl PathState {
+    /// Number of live paths.
+    pub fn len(&self) -> usize {
+        self.pixel.len()
+    }
+
+    /// Whether no path is live.
+    pub fn is_empty(&self) -> bool {
+        self.pixel.is_empty()
+    }
+
+    /// Resizes every column to `n`.
+    pub fn resize(&mut self, n: usize) {
+        self.pixel.resize(n, 0);
+        self.rng_key.resize(n, 0);
+        self.throughput.resize(n, Rgb::ZERO);
+        self.radiance.resize(n, Rgb::ZERO);
+        self.count_emission.resize(n, false);
+        self.alive.resize(n, false);
+    }
+}
+
+/// Shadow rays: a fixed number of entries per live path (`per_path`), so that each path owns
+/// a contiguous chunk and the shadow stage can accumulate without synchronisation.
+#[derive(Default)]
+pub struct ShadowBatch {
+    /// Entries per path (at least 1).
+    pub per_path: usize,
+    /// Origin, offset off the surface.
+    pub origin: Vec<Vec3A>,
+    /// Unit direction toward the light point.
+    pub direction: Vec<Vec3A>,
+    /// Distance up to which occluders count (just short of the light).
+    pub t_max: Vec<f32>,
+    /// Radiance added to the path if the ray is unoccluded; zero marks an unused entry.
+    pub contribution: Vec<Rgb>,
+}
+
+impl ShadowBatch {
+    /// Resizes for `paths` live paths.
+    pub fn resize(&mut self, paths: usize) {
+        let n = paths * self.per_path;
+        self.origin.resize(n, Vec3A::ZERO);
+        self.direction.resize(n, Vec3A::Z);
+        self.t_max.resize(n, 0.0);
+        self.contribution.resize(n, Rgb::ZERO);
+    }
+}
+
+/// Stable, order-preserving compaction after a bounce: paths still alive move to the front
+/// (with their next rays, which become the current rays), and finished paths deliver their
+/// radiance to the film. Sequential on purpose: the film receives samples in the same order
+/// on every run.
+pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut Film) {
+    let mut kept = 0;
+    for i in 0..paths.len() {
+        if !paths.alive[i] {
+            film.add_sample(paths.pixel[i], paths.radiance[i]);
+            continue;
+        }
+        paths.pixel[kept] = paths.pixel[i];
+        paths.rng_key[kept] = paths.rng_key[i];
+        paths.throughput[kept] = paths.throughput[i];
+        paths.radiance[kept] = paths.radiance[i];
+        paths.count_emission[kept] = paths.count_emission[i];
+        next_rays.origin[kept] = next_rays.origin[i];
+        next_rays.direction[kept] = next_rays.direction[i];
+        kept += 1;
+    }
+    paths.resize(kept);
+    next_rays.resize(kept);
+}

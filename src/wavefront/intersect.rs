@@ -1,0 +1,39 @@
+//! Stage 2, intersect: the closest hit of every ray of the batch.
+
+use super::batch::{HitBatch, NO_HIT, RayBatch};
+use crate::flatten::{FlatScene, Shape};
+use crate::math::Vec2;
+use rayon::prelude::*;
+
+/// Finds the closest hit of each ray; misses get [`NO_HIT`].
+pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch) {
+    let n = rays.len();
+    hits.t.resize(n, 0.0);
+    hits.slot.resize(n, NO_HIT);
+    hits.barycentric.resize(n, Vec2::ZERO);
+    (
+        &mut hits.t,
+        &mut hits.slot,
+        &mut hits.barycentric,
+        &rays.origin,
+        &rays.direction,
+    )
+        .into_par_iter()
+        .with_min_len(256)
+        .for_each(|(t, slot, barycentric, &origin, &direction)| {
+            (*slot, *t) = scene
+                .closest_hit(origin, direction, f32::INFINITY)
+                .unwrap_or((NO_HIT, f32::INFINITY));
+            if let Some(Shape::Triangle(tri)) = scene.shapes.get(*slot as usize) {
+                // Barycentrics only for the winner; the traversal computed them for every candidate.
+                *barycentric = crate::flatten::triangles::intersect_triangle(
+                    tri,
+                    origin,
+                    direction,
+                    0.0,
+                    f32::INFINITY,
+                )
+                .map_or(Vec2::ZERO, |h| h.1);
+            }
+        });
+}

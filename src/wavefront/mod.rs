@@ -1,0 +1,151 @@
+//! The renderer: wavefront stages over batches of paths.
+//!
+//! Each pass takes one sample per pixel; pixels are cut into batches; each batch runs
+//! generate -> (intersect -> shade -> shadow -> compact)* until no path is left. Every stage
+//! is a plain function over the structure-of-arrays buffers of [`batch`], parallel inside.
+
+pub mod batch;
+pub mod generate;
+pub mod intersect;
+pub mod shade;
+pub mod shadow;
+pub mod stats;
+
+use crate::camera::PinholeCamera;
+use crate::error::Result;
+use crate::film::Film;
+use crate::flatten::FlatScene;
+use crate::settings::RenderSettings;
+use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
+use shade::ShadeParams;
+use stats::RenderStats;
+use std::time::{Duration, Instant};
+
+/// Reported after every batch; the callback decides whether to go on.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Paths (samples) finished so far.
+    pub samples_done: u64,
+    /// Paths in the whole render.
+    pub samples_total: u64,
+}
+
+/// What the progress callback wants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flow {
+    /// Keep rendering.
+    Continue,
+    /// Stop at this batch boundary; the film keeps the samples finished so far.
+    Stop,
+}
+
+/// The work buffers, allocated once and reused by every batch and bounce.
+#[derive(Default)]
+struct Buffers {
+    paths: PathState,
+    rays: RayBatch,
+    next_rays: RayBatch,
+    hits: HitBatch,
+    shadows: ShadowBatch,
+}
+
+/// Renders `scene`, calling `progress` after each batch. Runs on the current rayon pool.
+pub fn render(
+    scene: &FlatScene,
+    settings: &RenderSettings,
+    mut progress: impl FnMut(Progress) -> Flow,
+) -> Result<(Film, RenderStats)> {
+    settings.validate()?;
+    let start = Instant::now();
+    let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
+    let pixel_count = settings.width * settings.height;
+    let batch_size = settings.batch_size.min(pixel_count);
+    let mut film = Film::new(settings.width, settings.height);
+    let mut stats = RenderStats::default();
+    let mut b = Buffers {
+        shadows: ShadowBatch {
+            per_path: settings.shadow_rays.max(1) as usize,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let samples_total = pixel_count as u64 * settings.spp as u64;
+
+    'passes: for sample_index in 0..settings.spp {
+        for first in (0..pixel_count).step_by(batch_size as usize) {
+            let pixels = first..(first + batch_size).min(pixel_count);
+            // 1. generate: one camera ray per pixel of the batch
+            timed(&mut stats.stage_time[0], || {
+                generate::generate_camera_rays(
+                    &camera,
+                    settings.seed,
+                    pixels.clone(),
+                    sample_index,
+                    &mut b.paths,
+                    &mut b.rays,
+                )
+            });
+            stats.camera_rays += b.rays.len() as u64;
+            for bounce in 0.. {
+                if b.paths.is_empty() {
+                    break;
+                }
+                if bounce > 0 {
+                    stats.bounce_rays += b.rays.len() as u64;
+                }
+                // 2. intersect: closest hit of every ray
+                timed(&mut stats.stage_time[1], || {
+                    intersect::intersect_closest(scene, &b.rays, &mut b.hits)
+                });
+                // 3. shade: emission, shadow rays, next rays, Russian roulette
+                let params = ShadeParams {
+                    bounce,
+                    shadow_rays: settings.shadow_rays,
+                    roulette_min_bounces: settings.roulette_min_bounces,
+                    max_depth: settings.max_depth,
+                };
+                stats.capped_paths += timed(&mut stats.stage_time[2], || {
+                    shade::shade_hits(
+                        scene,
+                        params,
+                        &b.rays,
+                        &b.hits,
+                        &mut b.paths,
+                        &mut b.next_rays,
+                        &mut b.shadows,
+                    )
+                });
+                // 4. shadow: occlusion, then unoccluded light is added to its path
+                stats.shadow_rays += timed(&mut stats.stage_time[3], || {
+                    shadow::trace_shadow_rays(scene, &b.shadows, &mut b.paths)
+                });
+                // finished paths go to the film; survivors continue with their next rays
+                timed(&mut stats.stage_time[4], || {
+                    compact_paths(&mut b.paths, &mut b.next_rays, &mut film)
+                });
+                std::mem::swap(&mut b.rays, &mut b.next_rays);
+            }
+            stats.samples += pixels.len() as u64;
+            if progress(Progress {
+                samples_done: stats.samples,
+                samples_total,
+            }) == Flow::Stop
+            {
+                stats.interrupted = stats.samples < samples_total;
+                break 'passes;
+            }
+        }
+    }
+    stats.rejected_samples = film.rejected_samples;
+    stats.complete_spp = (stats.samples / pixel_count as u64) as u32;
+    stats.wall_time = start.elapsed();
+    Ok((film, stats))
+}
+
+/// Runs `f`, adding its duration to `total`.
+fn timed<T>(total: &mut Duration, f: impl FnOnce() -> T) -> T {
+    let t = Instant::now();
+    let r = f();
+    *total += t.elapsed();
+    r
+}

@@ -1,0 +1,254 @@
+//! Stage 3, shade: at each hit, add emission the path may count, make the next-event
+//! estimation shadow rays, sample the BSDF for the next ray, and play Russian roulette.
+
+use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
+use crate::flatten::spheres::SphereGeom;
+use crate::flatten::{FlatScene, NO_EMITTER, Shape};
+use crate::math::frame::Frame;
+use crate::math::rng::{self, dim};
+use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
+use rayon::prelude::*;
+
+/// Russian roulette never keeps a path with probability above this, so that paths through
+/// lossless materials (glass, white mirrors) still end.
+const MAX_SURVIVAL: f32 = 0.95;
+/// Shadow rays stop this fraction short of the light point, so the light itself never occludes.
+const SHADOW_RAY_SHORTENING: f32 = 1e-4;
+
+/// What shading needs to know besides the scene.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadeParams {
+    /// Index of the bounce: 0 for camera rays.
+    pub bounce: u32,
+    /// Shadow rays per non-delta hit; 0 disables next-event estimation.
+    pub shadow_rays: u32,
+    /// Bounces before Russian roulette may end a path.
+    pub roulette_min_bounces: u32,
+    /// Paths are cut (and counted) when they reach this depth.
+    pub max_depth: u32,
+}
+
+/// Shades every hit of the batch. Writes each path's next ray into `next_rays` (same index)
+/// and its shadow rays into its chunk of `shadows`; returns how many paths hit the depth cap.
+pub fn shade_hits(
+    scene: &FlatScene,
+    params: ShadeParams,
+    rays: &RayBatch,
+    hits: &HitBatch,
+    paths: &mut PathState,
+    next_rays: &mut RayBatch,
+    shadows: &mut ShadowBatch,
+) -> u64 {
+    let n = paths.len();
+    next_rays.resize(n);
+    shadows.resize(n);
+    let per = shadows.per_path;
+    let path_columns = (
+        &mut paths.throughput,
+        &mut paths.radiance,
+        &mut paths.count_emission,
+        &mut paths.alive,
+        &paths.rng_key,
+    );
+    let ray_columns = (
+        &rays.origin,
+        &rays.direction,
+        &hits.t,
+        &hits.slot,
+        &hits.barycentric,
+        &mut next_rays.origin,
+        &mut next_rays.direction,
+    );
+    let shadow_columns = (
+        shadows.origin.par_chunks_mut(per),
+        shadows.direction.par_chunks_mut(per),
+        shadows.t_max.par_chunks_mut(per),
+        shadows.contribution.par_chunks_mut(per),
+    );
+    (path_columns, ray_columns, shadow_columns)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(
+            |(
+                (throughput, radiance, count_emission, alive, &key),
+                (&origin, &direction, &t, &slot, &barycentric, next_origin, next_direction),
+                shadow,
+            )| {
+                let mut path = PathView {
+                    throughput,
+                    radiance,
+                    count_emission,
+                    alive,
+                    next_origin,
+                    next_direction,
+                };
+                let hit = Hit {
+                    origin,
+                    direction,
+                    t,
+                    slot,
+                    barycentric,
+                };
+                let shadow = ShadowView {
+                    origin: shadow.0,
+                    direction: shadow.1,
+                    t_max: shadow.2,
+                    contribution: shadow.3,
+                };
+                shade_one(scene, &params, key, hit, &mut path, shadow) as u64
+            },
+        )
+        .sum()
+}
+
+/// The ray and what it hit.
+struct Hit {
+    origin: Vec3A,
+    direction: Vec3A,
+    t: f32,
+    slot: u32,
+    barycentric: Vec2,
+}
+
+/// One path's mutable state.
+struct PathView<'a> {
+    throughput: &'a mut Rgb,
+    radiance: &'a mut Rgb,
+    count_emission: &'a mut bool,
+    alive: &'a mut bool,
+    next_origin: &'a mut Vec3A,
+    next_direction: &'a mut Vec3A,
+}
+
+/// One path's chunk of the shadow batch.
+struct ShadowView<'a> {
+    origin: &'a mut [Vec3A],
+    direction: &'a mut [Vec3A],
+    t_max: &'a mut [f32],
+    contribution: &'a mut [Rgb],
+}
+
+/// Shades one hit. Returns whether the path was cut by the depth cap.
+fn shade_one(
+    scene: &FlatScene,
+    params: &ShadeParams,
+    key: u64,
+    hit: Hit,
+    path: &mut PathView,
+    shadow: ShadowView,
+) -> bool {
+    shadow.contribution.fill(Rgb::ZERO);
+    *path.alive = false;
+    if hit.slot == NO_HIT {
+        return false; // the background is black
+    }
+    let slot = hit.slot as usize;
+    let bounce = params.bounce;
+
+    // --- Surface: position, its rounding error, geometric and shading normals.
+    let (p, p_error, ng, ns) = match scene.shapes[slot] {
+        Shape::Triangle(tri) => {
+            let ng = tri.normal_unnormalized().normalize();
+            let [n0, n1, n2] = scene.vertex_normals[slot];
+            let b = hit.barycentric;
+            let ns = if n0 == crate::math::Vec3::ZERO {
+                ng
+            } else {
+                let ns = Vec3A::from(n0 * (1.0 - b.x - b.y) + n1 * b.x + n2 * b.y).normalize_or(ng);
+                if ns.dot(ng) < 0.0 { -ns } else { ns } // the geometric normal decides the sides
+            };
+            (tri.point(b), tri.point_error(b), ng, ns)
+        }
+        Shape::Sphere(sphere) => {
+            let (p, n) = sphere.project(hit.origin + hit.t * hit.direction);
+            (p, SphereGeom::point_error(p), n, n)
+        }
+    };
+    let wo = -hit.direction;
+    let front = ng.dot(wo) > 0.0;
+
+    // --- Emission, where next-event estimation has not already counted it.
+    let emitter = scene.emitter[slot];
+    if emitter != NO_EMITTER && *path.count_emission {
+        let light = &scene.lights.lights[emitter as usize];
+        if front || light.two_sided {
+            *path.radiance += *path.throughput * light.radiance;
+        }
+    }
+    let bsdf = scene.materials[scene.material[slot] as usize];
+    if bsdf.is_black() {
+        return false; // e.g. a light source: it reflects nothing
+    }
+    let frame = Frame::from_normal(ns);
+    let wo_local = frame.to_local(wo);
+
+    // --- Next-event estimation: N shadow rays to points chosen by power and area.
+    let next_event = params.shadow_rays > 0 && !bsdf.is_delta() && !scene.lights.is_empty();
+    if next_event {
+        let inv_n = 1.0 / params.shadow_rays as f32;
+        for j in 0..params.shadow_rays as usize {
+            let d0 = dim::SHADOW_FIRST + dim::PER_SHADOW_RAY * j as u32;
+            let light = scene.lights.sample(
+                rng::uniform(key, bounce, d0),
+                rng::uniform2(key, bounce, d0 + 1),
+            );
+            let to_light = light.point - p;
+            let distance_squared = to_light.length_squared();
+            let wi = to_light / distance_squared.sqrt();
+            let cos_light = -light.normal.dot(wi);
+            if !(cos_light > 0.0 || (light.two_sided && cos_light < 0.0))
+                || (ng.dot(wi) > 0.0) != front
+            {
+                continue; // the light's back faces us, or the light is behind the surface
+            }
+            let f = bsdf.eval(wo_local, frame.to_local(wi));
+            if f == Rgb::ZERO {
+                continue;
+            }
+            let geometry = ns.dot(wi).abs() * cos_light.abs() / distance_squared;
+            let origin = offset_ray_origin(p, p_error, ng, wi);
+            let segment = light.point - origin;
+            let length = segment.length();
+            shadow.origin[j] = origin;
+            shadow.direction[j] = segment / length;
+            shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
+            shadow.contribution[j] =
+                *path.throughput * f * light.radiance * (geometry * inv_n / light.pdf_area);
+        }
+    }
+
+    // --- BSDF sampling for the next ray.
+    let u_lobe = rng::uniform(key, bounce, dim::BSDF_LOBE);
+    let Some(sample) = bsdf.sample(
+        wo_local,
+        u_lobe,
+        rng::uniform2(key, bounce, dim::BSDF_DIRECTION),
+    ) else {
+        return false;
+    };
+    let wi = frame.to_world(sample.wi);
+    let transmitted = sample.wi.z * wo_local.z < 0.0;
+    if ((ng.dot(wi) > 0.0) == front) == transmitted {
+        return false; // the shading normal sent the ray through the wrong side of the surface
+    }
+    *path.throughput *= sample.weight;
+    *path.count_emission = sample.is_delta || params.shadow_rays == 0;
+
+    // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
+    if bounce >= params.roulette_min_bounces {
+        let survival = max_component(*path.throughput).min(MAX_SURVIVAL);
+        if rng::uniform(key, bounce, dim::ROULETTE) >= survival {
+            return false;
+        }
+        *path.throughput /= survival;
+    } else if *path.throughput == Rgb::ZERO {
+        return false;
+    }
+    if bounce + 1 >= params.max_depth {
+        return true;
+    }
+    *path.next_origin = offset_ray_origin(p, p_error, ng, wi);
+    *path.next_direction = wi;
+    *path.alive = true;
+    false
+}
