@@ -77,6 +77,6 @@ mod tests {
         let t = "a = 1\nbb = [\n  3]\n";
         assert_eq!(super::line_column(t, 0), "line 1, column 1");
         assert_eq!(super::line_column(t, 6), "line 2, column 1");
-        assert_eq!(super::line_column(t, 16), "line 3, column 3");
+        assert_eq!(super::line_column(t, 15), "line 3, column 3");
     }
 }

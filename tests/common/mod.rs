@@ -1,0 +1,84 @@
+//! Helpers shared by the end-to-end tests: scenes from TOML text, renders on a given number
+//! of threads, and the statistics of image means.
+#![allow(dead_code)]
+
+use std::path::Path;
+use wavetrace::{FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render, scene::load::load_scene_str};
+
+/// Flattens a TOML scene given as text (includes resolve against the repository's `scenes/`).
+pub fn scene_from_toml(text: &str) -> FlatScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/test-scene.toml");
+    let scene = load_scene_str(&path, text).expect("test scene loads");
+    flatten(&scene.world, &path).expect("test scene flattens")
+}
+
+/// The shipped seed room.
+pub fn room() -> FlatScene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
+    let scene = wavetrace::load_scene(&path).expect("room loads");
+    flatten(&scene.world, &path).expect("room flattens")
+}
+
+/// Renders on a pool of `threads` threads.
+pub fn render_with_threads(scene: &FlatScene, settings: &RenderSettings, threads: usize) -> (Image, RenderStats) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    let (film, stats) = pool.install(|| render(scene, settings, |_| Flow::Continue)).expect("render succeeds");
+    (film.resolve(), stats)
+}
+
+/// Renders with the default thread count.
+pub fn render_image(scene: &FlatScene, settings: &RenderSettings) -> Image {
+    render_with_threads(scene, settings, 0).0
+}
+
+/// Luminance-free per-channel mean of an image, in f64.
+pub fn mean(image: &Image) -> [f64; 3] {
+    let mut s = [0.0f64; 3];
+    for p in &image.pixels {
+        for c in 0..3 {
+            s[c] += p[c] as f64;
+        }
+    }
+    s.map(|x| x / image.pixels.len() as f64)
+}
+
+/// The image mean of an estimator and its standard error, from two independent renders `a`
+/// and `b` (different seeds): the error of (a + b) / 2 has the variance of (a - b) / 2, summed
+/// over independent pixels.
+pub fn mean_and_error(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
+    let p = a.pixels.len() as f64;
+    let (ma, mb) = (mean(a), mean(b));
+    let mut var = [0.0f64; 3];
+    for (x, y) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            let d = (x[c] - y[c]) as f64;
+            var[c] += d * d / 4.0;
+        }
+    }
+    let mean = [0, 1, 2].map(|c| (ma[c] + mb[c]) / 2.0);
+    (mean, var.map(|v| v.sqrt() / p))
+}
+
+/// Renders the estimator twice with different seeds and returns its mean and standard error.
+pub fn estimate(scene: &FlatScene, settings: &RenderSettings) -> ([f64; 3], [f64; 3]) {
+    let a = render_image(scene, &RenderSettings { seed: settings.seed, ..*settings });
+    let b = render_image(scene, &RenderSettings { seed: settings.seed ^ 0xA5A5_5A5A_1234_4321, ..*settings });
+    assert_finite(&a);
+    assert_finite(&b);
+    mean_and_error(&a, &b)
+}
+
+/// Panics if any pixel is NaN or infinite.
+pub fn assert_finite(image: &Image) {
+    assert!(image.pixels.iter().all(|p| p.is_finite()), "image has NaN or infinite pixels");
+}
+
+/// Asserts |x - y| <= k * sqrt(ex^2 + ey^2) per channel, and prints the z-scores.
+pub fn assert_agree(what: &str, (x, ex): ([f64; 3], [f64; 3]), (y, ey): ([f64; 3], [f64; 3]), k: f64) {
+    for c in 0..3 {
+        let sigma = (ex[c] * ex[c] + ey[c] * ey[c]).sqrt();
+        let z = (x[c] - y[c]) / sigma;
+        eprintln!("{what}: channel {c}: {:.5} vs {:.5} (sigma {:.2e}, z = {z:.2})", x[c], y[c], sigma);
+        assert!(z.abs() <= k, "{what}: channel {c} differs by {z:.2} sigma ({} vs {})", x[c], y[c]);
+    }
+}
