@@ -19,13 +19,35 @@ fn render_writes_png_and_exr_of_the_asked_size() {
         let out = dir.path().join(name);
         let status = wavetrace()
             .current_dir(dir.path()) // not the repository: nothing may be read relative to it
-            .args(["render", room_path().to_str().unwrap(), "-o", out.to_str().unwrap()])
-            .args(["--width", &w.to_string(), "--height", &h.to_string(), "--spp", "2", "--shadow-rays", "2", "--quiet"])
+            .args([
+                "render",
+                room_path().to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .args([
+                "--width",
+                &w.to_string(),
+                "--height",
+                &h.to_string(),
+                "--spp",
+                "2",
+                "--shadow-rays",
+                "2",
+                "--quiet",
+            ])
             .output()
             .unwrap();
-        assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+        assert!(
+            status.status.success(),
+            "{}",
+            String::from_utf8_lossy(&status.stderr)
+        );
         let stderr = String::from_utf8_lossy(&status.stderr);
-        assert!(stderr.contains("rays/s") && stderr.contains("samples/s"), "summary line missing: {stderr}");
+        assert!(
+            stderr.contains("rays/s") && stderr.contains("samples/s"),
+            "summary line missing: {stderr}"
+        );
         if name.ends_with(".png") {
             let img = image::open(&out).unwrap().to_rgb8();
             assert_eq!((img.width(), img.height()), (w, h));
@@ -36,7 +58,11 @@ fn render_writes_png_and_exr_of_the_asked_size() {
             assert!(img.pixels.iter().all(|p| p.is_finite()) && img.mean().max_element() > 0.0);
         }
         // No temporary file is left beside the output.
-        let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().filter_map(|e| e.ok()).filter(|e| e.file_name().to_string_lossy().contains(".tmp")).collect();
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+            .collect();
         assert!(leftovers.is_empty());
     }
 }
@@ -46,7 +72,17 @@ fn default_output_is_named_after_the_scene_in_the_working_directory() {
     let dir = tempfile::tempdir().unwrap();
     let status = wavetrace()
         .current_dir(dir.path())
-        .args(["render", room_path().to_str().unwrap(), "--width", "8", "--height", "8", "--spp", "1", "--quiet"])
+        .args([
+            "render",
+            room_path().to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "--quiet",
+        ])
         .status()
         .unwrap();
     assert!(status.success());

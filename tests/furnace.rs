@@ -9,7 +9,13 @@ use wavetrace::RenderSettings;
 /// image mean's standard error is the pixel standard deviation over sqrt(pixels).
 fn check_furnace(scene_toml: &str, albedo: f32, emission: f32, shadow_rays: u32, spp: u32) {
     let scene = scene_from_toml(scene_toml);
-    let settings = RenderSettings { width: 64, height: 64, spp, shadow_rays, ..Default::default() };
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        spp,
+        shadow_rays,
+        ..Default::default()
+    };
     let image = render_image(&scene, &settings);
     assert_finite(&image);
     let expected = emission as f64 / (1.0 - albedo as f64);
@@ -20,9 +26,17 @@ fn check_furnace(scene_toml: &str, albedo: f32, emission: f32, shadow_rays: u32,
         let sd = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         let error = sd / n.sqrt();
         let z = (mean - expected) / error;
-        eprintln!("albedo {albedo}, shadow rays {shadow_rays}: {mean:.5} vs {expected:.5} (error {error:.2e}, z {z:.2})");
-        assert!(error < 0.01 * expected, "the test must be able to detect a 1% bias (error {error})");
-        assert!(z.abs() < 4.0, "furnace mean {mean} differs from {expected} by {z:.2} standard errors");
+        eprintln!(
+            "albedo {albedo}, shadow rays {shadow_rays}: {mean:.5} vs {expected:.5} (error {error:.2e}, z {z:.2})"
+        );
+        assert!(
+            error < 0.01 * expected,
+            "the test must be able to detect a 1% bias (error {error})"
+        );
+        assert!(
+            z.abs() < 4.0,
+            "furnace mean {mean} differs from {expected} by {z:.2} standard errors"
+        );
     }
 }
 
@@ -68,7 +82,9 @@ fn cube_enclosure(albedo: f32, emission: f32) -> String {
         "[[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]]",     // y = +1, faces -y
     ];
     for f in faces {
-        s += &format!("[[shape]]\ntype = \"quad\"\nmaterial = \"wall\"\nemission = [{emission}, {emission}, {emission}]\nvertices = {f}\n");
+        s += &format!(
+            "[[shape]]\ntype = \"quad\"\nmaterial = \"wall\"\nemission = [{emission}, {emission}, {emission}]\nvertices = {f}\n"
+        );
     }
     s
 }

@@ -8,10 +8,32 @@ use wavetrace::RenderSettings;
 #[test]
 fn room_mean_is_the_same_with_1_and_16_shadow_rays() {
     let scene = room();
-    let base = RenderSettings { width: 64, height: 64, spp: 16, ..Default::default() };
-    let one = estimate(&scene, &RenderSettings { shadow_rays: 1, ..base });
-    let sixteen = estimate(&scene, &RenderSettings { shadow_rays: 16, spp: 4, seed: 7, ..base });
-    assert!(one.1.iter().zip(one.0).all(|(e, m)| *e < 0.02 * m), "the test resolves a 2% difference");
+    let base = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 16,
+        ..Default::default()
+    };
+    let one = estimate(
+        &scene,
+        &RenderSettings {
+            shadow_rays: 1,
+            ..base
+        },
+    );
+    let sixteen = estimate(
+        &scene,
+        &RenderSettings {
+            shadow_rays: 16,
+            spp: 4,
+            seed: 7,
+            ..base
+        },
+    );
+    assert!(
+        one.1.iter().zip(one.0).all(|(e, m)| *e < 0.02 * m),
+        "the test resolves a 2% difference"
+    );
     assert_agree("room, 1 vs 16 shadow rays", one, sixteen, 4.0);
 }
 
@@ -68,9 +90,30 @@ radius = 0.35
 #[test]
 fn next_event_estimation_matches_brute_force_path_tracing() {
     let scene = scene_from_toml(BOX);
-    let base = RenderSettings { width: 48, height: 48, ..Default::default() };
-    let nee = estimate(&scene, &RenderSettings { shadow_rays: 2, spp: 16, ..base });
-    let brute = estimate(&scene, &RenderSettings { shadow_rays: 0, spp: 64, ..base });
-    assert!(brute.1.iter().zip(brute.0).all(|(e, m)| *e < 0.02 * m), "the test resolves a 2% difference: {brute:?}");
+    let base = RenderSettings {
+        width: 48,
+        height: 48,
+        ..Default::default()
+    };
+    let nee = estimate(
+        &scene,
+        &RenderSettings {
+            shadow_rays: 2,
+            spp: 16,
+            ..base
+        },
+    );
+    let brute = estimate(
+        &scene,
+        &RenderSettings {
+            shadow_rays: 0,
+            spp: 64,
+            ..base
+        },
+    );
+    assert!(
+        brute.1.iter().zip(brute.0).all(|(e, m)| *e < 0.02 * m),
+        "the test resolves a 2% difference: {brute:?}"
+    );
     assert_agree("box, NEE vs brute force", nee, brute, 4.0);
 }

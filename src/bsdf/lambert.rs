@@ -56,12 +56,19 @@ mod tests {
         // Each sample's weight equals eval * cos / pdf, and pdf agrees with `pdf`.
         let n = 64;
         for i in 0..n * n {
-            let u = Vec2::new(((i % n) as f32 + 0.5) / n as f32, ((i / n) as f32 + 0.5) / n as f32);
+            let u = Vec2::new(
+                ((i % n) as f32 + 0.5) / n as f32,
+                ((i / n) as f32 + 0.5) / n as f32,
+            );
             let s = sample(albedo, wo, u).unwrap();
             let expected = eval(albedo, wo, s.wi) * s.wi.z.abs() / pdf(wo, s.wi);
             assert!((expected - s.weight).abs().max_element() < 1e-4);
             assert!((s.pdf - pdf(wo, s.wi)).abs() < 1e-5);
-            assert_eq!(eval(albedo, wo, s.wi), eval(albedo, s.wi, wo), "reciprocity");
+            assert_eq!(
+                eval(albedo, wo, s.wi),
+                eval(albedo, s.wi, wo),
+                "reciprocity"
+            );
         }
         // Directional albedo by quadrature of f cos over the hemisphere equals the albedo.
         let (nt, np) = (512, 16);
@@ -70,8 +77,14 @@ mod tests {
             let theta = (i as f32 + 0.5) / nt as f32 * std::f32::consts::FRAC_PI_2;
             for j in 0..np {
                 let phi = (j as f32 + 0.5) / np as f32 * std::f32::consts::TAU;
-                let wi = Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
-                let d_omega = theta.sin() * (std::f32::consts::FRAC_PI_2 / nt as f32) * (std::f32::consts::TAU / np as f32);
+                let wi = Vec3A::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                );
+                let d_omega = theta.sin()
+                    * (std::f32::consts::FRAC_PI_2 / nt as f32)
+                    * (std::f32::consts::TAU / np as f32);
                 integral += eval(albedo, wo, wi) * wi.z * d_omega;
             }
         }

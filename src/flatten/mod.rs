@@ -15,7 +15,6 @@ use crate::error::{Error, Result};
 use crate::math::{Mat3A, Vec3, Vec3A};
 use crate::scene::{Camera, Emitter, Material, Mesh, Name, Sphere, Transform};
 use lights::{AreaLight, LightTable};
-use obvhs::cwbvh::CwBvh;
 use spheres::SphereGeom;
 use std::path::Path;
 use triangles::TriangleGeom;
@@ -48,7 +47,10 @@ pub struct FlatScene {
     /// Emitting primitives.
     pub lights: LightTable,
     /// The BVH over `shapes` (slot `i` is `shapes[i]`).
-    pub bvh: CwBvh,
+    pub bvh: bvh::Bvh4,
+    /// Per slot, the index of the primitive in flattening order (meshes in query order, their
+    /// triangles in index order, then spheres), to map hits back to the input.
+    pub source_index: Vec<u32>,
     /// The camera.
     pub camera: Camera,
     /// Things skipped while flattening (degenerate triangles, ...), for the user to see.
@@ -159,8 +161,18 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let shapes_unordered: Vec<Shape> = prims.iter().map(|p| p.shape).collect();
-    let (bvh, order) = bvh::build_bvh(&shapes_unordered);
+    let (bvh, order) = bvh::build_bvh(&shapes_unordered).ok_or_else(|| {
+        Error::input(
+            path,
+            None,
+            format!(
+                "the geometry is too degenerate for the BVH (deeper than {})",
+                bvh::MAX_DEPTH
+            ),
+        )
+    })?;
     let ordered = || order.iter().map(|&i| &prims[i as usize]);
+    let source_index = order.clone();
     let mut area_lights = Vec::new();
     let emitter = ordered()
         .map(|p| match p.emitter {
@@ -189,6 +201,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         materials,
         lights: LightTable::new(area_lights),
         bvh,
+        source_index,
         camera,
         warnings,
     })

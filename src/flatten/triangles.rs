@@ -70,14 +70,16 @@ pub fn intersect_triangle(
     }
     let inv_det = 1.0 / det;
     let c = tri.v0 - origin;
+    // Distance first: most candidates (walls behind the segment's end, triangles behind the
+    // origin) are rejected here, before the barycentric tests.
+    let t = ng.dot(c) * inv_det;
+    if !(t >= tmin && t <= tmax) {
+        return None;
+    }
     let r = direction.cross(c);
     let u = -r.dot(tri.e2) * inv_det;
     let v = r.dot(tri.e1) * inv_det;
-    if !(u >= 0.0 && v >= 0.0 && u + v <= 1.0) {
-        return None;
-    }
-    let t = ng.dot(c) * inv_det;
-    (t >= tmin && t <= tmax).then_some((t, Vec2::new(u, v)))
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then_some((t, Vec2::new(u, v)))
 }
 
 #[cfg(test)]

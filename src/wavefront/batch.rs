@@ -6,7 +6,7 @@ use crate::film::Film;
 use crate::math::{Rgb, Vec2, Vec3A};
 
 /// Rays to intersect, one per live path.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct RayBatch {
     /// Ray origin, world space (already offset off the surface it leaves).
     pub origin: Vec<Vec3A>,
@@ -36,7 +36,7 @@ impl RayBatch {
 pub const NO_HIT: u32 = u32::MAX;
 
 /// Closest hits of a [`RayBatch`].
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct HitBatch {
     /// Distance along the ray.
     pub t: Vec<f32>,
@@ -47,7 +47,7 @@ pub struct HitBatch {
 }
 
 /// Per-path state that lives across bounces.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct PathState {
     /// Pixel index (row-major) the path contributes to.
     pub pixel: Vec<u32>,
@@ -87,12 +87,13 @@ impl PathState {
 }
 
 /// Shadow rays: a fixed number of entries per live path (`per_path`), so that each path owns
-/// a contiguous chunk and the shadow stage can accumulate without synchronisation.
+/// a contiguous chunk and the shadow stage can accumulate without synchronisation. The rays
+/// of one path share their origin, which lets the shadow stage trace them as one packet.
 #[derive(Default)]
 pub struct ShadowBatch {
     /// Entries per path (at least 1).
     pub per_path: usize,
-    /// Origin, offset off the surface.
+    /// Shared origin of each path's shadow rays, offset off the surface (one per path).
     pub origin: Vec<Vec3A>,
     /// Unit direction toward the light point.
     pub direction: Vec<Vec3A>,
@@ -106,7 +107,7 @@ impl ShadowBatch {
     /// Resizes for `paths` live paths.
     pub fn resize(&mut self, paths: usize) {
         let n = paths * self.per_path;
-        self.origin.resize(n, Vec3A::ZERO);
+        self.origin.resize(paths, Vec3A::ZERO);
         self.direction.resize(n, Vec3A::Z);
         self.t_max.resize(n, 0.0);
         self.contribution.resize(n, Rgb::ZERO);

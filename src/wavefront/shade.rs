@@ -60,7 +60,7 @@ pub fn shade_hits(
         &mut next_rays.direction,
     );
     let shadow_columns = (
-        shadows.origin.par_chunks_mut(per),
+        &mut shadows.origin,
         shadows.direction.par_chunks_mut(per),
         shadows.t_max.par_chunks_mut(per),
         shadows.contribution.par_chunks_mut(per),
@@ -122,7 +122,7 @@ struct PathView<'a> {
 
 /// One path's chunk of the shadow batch.
 struct ShadowView<'a> {
-    origin: &'a mut [Vec3A],
+    origin: &'a mut Vec3A,
     direction: &'a mut [Vec3A],
     t_max: &'a mut [f32],
     contribution: &'a mut [Rgb],
@@ -186,6 +186,11 @@ fn shade_one(
     let next_event = params.shadow_rays > 0 && !bsdf.is_delta() && !scene.lights.is_empty();
     if next_event {
         let inv_n = 1.0 / params.shadow_rays as f32;
+        // Every shadow ray leaves on the front side of the surface (lights behind it are
+        // skipped below), so all share one offset origin and can be traced as a packet.
+        let front_normal = if front { ng } else { -ng };
+        let origin = offset_ray_origin(p, p_error, ng, front_normal);
+        *shadow.origin = origin;
         for j in 0..params.shadow_rays as usize {
             let d0 = dim::SHADOW_FIRST + dim::PER_SHADOW_RAY * j as u32;
             let light = scene.lights.sample(
@@ -206,10 +211,8 @@ fn shade_one(
                 continue;
             }
             let geometry = ns.dot(wi).abs() * cos_light.abs() / distance_squared;
-            let origin = offset_ray_origin(p, p_error, ng, wi);
             let segment = light.point - origin;
             let length = segment.length();
-            shadow.origin[j] = origin;
             shadow.direction[j] = segment / length;
             shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
             shadow.contribution[j] =

@@ -3,7 +3,10 @@
 #![allow(dead_code)]
 
 use std::path::Path;
-use wavetrace::{FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render, scene::load::load_scene_str};
+use wavetrace::{
+    FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render,
+    scene::load::load_scene_str,
+};
 
 /// Flattens a TOML scene given as text (includes resolve against the repository's `scenes/`).
 pub fn scene_from_toml(text: &str) -> FlatScene {
@@ -20,9 +23,18 @@ pub fn room() -> FlatScene {
 }
 
 /// Renders on a pool of `threads` threads.
-pub fn render_with_threads(scene: &FlatScene, settings: &RenderSettings, threads: usize) -> (Image, RenderStats) {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-    let (film, stats) = pool.install(|| render(scene, settings, |_| Flow::Continue)).expect("render succeeds");
+pub fn render_with_threads(
+    scene: &FlatScene,
+    settings: &RenderSettings,
+    threads: usize,
+) -> (Image, RenderStats) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let (film, stats) = pool
+        .install(|| render(scene, settings, |_| Flow::Continue))
+        .expect("render succeeds");
     (film.resolve(), stats)
 }
 
@@ -61,8 +73,20 @@ pub fn mean_and_error(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
 
 /// Renders the estimator twice with different seeds and returns its mean and standard error.
 pub fn estimate(scene: &FlatScene, settings: &RenderSettings) -> ([f64; 3], [f64; 3]) {
-    let a = render_image(scene, &RenderSettings { seed: settings.seed, ..*settings });
-    let b = render_image(scene, &RenderSettings { seed: settings.seed ^ 0xA5A5_5A5A_1234_4321, ..*settings });
+    let a = render_image(
+        scene,
+        &RenderSettings {
+            seed: settings.seed,
+            ..*settings
+        },
+    );
+    let b = render_image(
+        scene,
+        &RenderSettings {
+            seed: settings.seed ^ 0xA5A5_5A5A_1234_4321,
+            ..*settings
+        },
+    );
     assert_finite(&a);
     assert_finite(&b);
     mean_and_error(&a, &b)
@@ -70,15 +94,31 @@ pub fn estimate(scene: &FlatScene, settings: &RenderSettings) -> ([f64; 3], [f64
 
 /// Panics if any pixel is NaN or infinite.
 pub fn assert_finite(image: &Image) {
-    assert!(image.pixels.iter().all(|p| p.is_finite()), "image has NaN or infinite pixels");
+    assert!(
+        image.pixels.iter().all(|p| p.is_finite()),
+        "image has NaN or infinite pixels"
+    );
 }
 
 /// Asserts |x - y| <= k * sqrt(ex^2 + ey^2) per channel, and prints the z-scores.
-pub fn assert_agree(what: &str, (x, ex): ([f64; 3], [f64; 3]), (y, ey): ([f64; 3], [f64; 3]), k: f64) {
+pub fn assert_agree(
+    what: &str,
+    (x, ex): ([f64; 3], [f64; 3]),
+    (y, ey): ([f64; 3], [f64; 3]),
+    k: f64,
+) {
     for c in 0..3 {
         let sigma = (ex[c] * ex[c] + ey[c] * ey[c]).sqrt();
         let z = (x[c] - y[c]) / sigma;
-        eprintln!("{what}: channel {c}: {:.5} vs {:.5} (sigma {:.2e}, z = {z:.2})", x[c], y[c], sigma);
-        assert!(z.abs() <= k, "{what}: channel {c} differs by {z:.2} sigma ({} vs {})", x[c], y[c]);
+        eprintln!(
+            "{what}: channel {c}: {:.5} vs {:.5} (sigma {:.2e}, z = {z:.2})",
+            x[c], y[c], sigma
+        );
+        assert!(
+            z.abs() <= k,
+            "{what}: channel {c} differs by {z:.2} sigma ({} vs {})",
+            x[c],
+            y[c]
+        );
     }
 }

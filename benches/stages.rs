@@ -1,0 +1,247 @@
+//! Stage-level benchmarks: each wavefront stage on a fixed, seeded batch of 65,536 paths,
+//! in the seed room and in a heavy scene (the room plus a procedural mesh of over a million
+//! triangles), reported as rays (or paths) per second; plus the BVH build of the heavy scene.
+//! Names are `stage/scene`.
+
+use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
+use std::hint::black_box;
+use std::path::Path;
+use wavetrace::camera::PinholeCamera;
+use wavetrace::math::{Vec3, rng};
+use wavetrace::scene::{Material, Mesh, Name, Transform};
+use wavetrace::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
+use wavetrace::wavefront::shade::{ShadeParams, shade_hits};
+use wavetrace::wavefront::{
+    generate::generate_camera_rays, intersect::intersect_closest, shadow::trace_shadow_rays,
+};
+use wavetrace::{FlatScene, flatten};
+
+const BATCH: u32 = 1 << 16;
+/// The seed benchmark's shadow-ray count.
+const SHADOW_RAYS: u32 = 15;
+
+fn room_world() -> hecs::World {
+    wavetrace::scene::load::load_scene_str(
+        Path::new("builtin:room"),
+        wavetrace::scene::load::BUILTIN_ROOM,
+    )
+    .unwrap()
+    .world
+}
+
+/// A bumpy sphere of `2 * rings * segments` triangles (radius modulated by a hash), so rays
+/// meet a realistic mix of tiny triangles.
+fn bumpy_sphere(rings: u32, segments: u32) -> Mesh {
+    let mut positions = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segments {
+            let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+            let bump = 1.0
+                + 0.04 * (rng::uniform(rng::path_key(7, i, j), 0, 0) - 0.5)
+                + 0.1 * (5.0 * theta).sin() * (7.0 * phi).cos();
+            positions.push(
+                bump * Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                ),
+            );
+        }
+    }
+    let mut indices = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b) = (i * segments + j, i * segments + (j + 1) % segments);
+            let (c, d) = (a + segments, b + segments);
+            indices.push([a, c, b]);
+            indices.push([b, c, d]);
+        }
+    }
+    Mesh {
+        positions,
+        indices,
+        ..Default::default()
+    }
+}
+
+fn heavy_world() -> hecs::World {
+    let mut world = room_world();
+    let transform = Transform(wavetrace::math::Affine3A::from_scale_rotation_translation(
+        Vec3::splat(2.0),
+        Default::default(),
+        Vec3::new(5.0, 0.0, -1.5),
+    ));
+    world.spawn((
+        Name("bumpy sphere".into()),
+        transform,
+        bumpy_sphere(512, 1040),
+        Material::Lambertian {
+            albedo: Vec3::splat(0.7),
+        },
+    ));
+    world
+}
+
+/// Buffers after generating camera rays for the first batch and shading their hits once.
+struct Prepared {
+    camera_rays: RayBatch,
+    camera_hits: HitBatch,
+    camera_paths: PathState,
+    bounce_rays: RayBatch,
+    shadow_paths: PathState,
+    shadows: ShadowBatch,
+    params: ShadeParams,
+}
+
+fn prepare(scene: &FlatScene) -> Prepared {
+    let camera = PinholeCamera::new(&scene.camera, 800, 800);
+    let (mut paths, mut rays, mut hits, mut next) = (
+        PathState::default(),
+        RayBatch::default(),
+        HitBatch::default(),
+        RayBatch::default(),
+    );
+    let mut shadows = ShadowBatch {
+        per_path: SHADOW_RAYS as usize,
+        ..Default::default()
+    };
+    generate_camera_rays(
+        &camera,
+        rng::DEFAULT_SEED,
+        0..BATCH,
+        0,
+        &mut paths,
+        &mut rays,
+    );
+    intersect_closest(scene, &rays, &mut hits);
+    let params = ShadeParams {
+        bounce: 0,
+        shadow_rays: SHADOW_RAYS,
+        roulette_min_bounces: 3,
+        max_depth: 1024,
+    };
+    let camera_paths = paths.clone();
+    shade_hits(
+        scene,
+        params,
+        &rays,
+        &hits,
+        &mut paths,
+        &mut next,
+        &mut shadows,
+    );
+    Prepared {
+        camera_rays: rays,
+        camera_hits: hits,
+        camera_paths,
+        bounce_rays: next,
+        shadow_paths: paths,
+        shadows,
+        params,
+    }
+}
+
+fn stages(c: &mut Criterion) {
+    let room = flatten(&room_world(), Path::new("builtin:room")).unwrap();
+    let heavy = flatten(&heavy_world(), Path::new("heavy")).unwrap();
+    for (name, scene) in [("seed_room", &room), ("heavy", &heavy)] {
+        let p = prepare(scene);
+        let camera = PinholeCamera::new(&scene.camera, 800, 800);
+
+        let mut g = c.benchmark_group("generate");
+        g.throughput(Throughput::Elements(BATCH as u64));
+        g.bench_function(name, |b| {
+            let (mut paths, mut rays) = (PathState::default(), RayBatch::default());
+            b.iter(|| {
+                generate_camera_rays(
+                    &camera,
+                    rng::DEFAULT_SEED,
+                    0..BATCH,
+                    0,
+                    &mut paths,
+                    &mut rays,
+                )
+            })
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group("intersect");
+        g.sample_size(20);
+        g.throughput(Throughput::Elements(p.camera_rays.len() as u64));
+        g.bench_function(format!("{name}_camera"), |b| {
+            let mut hits = HitBatch::default();
+            b.iter(|| intersect_closest(scene, &p.camera_rays, &mut hits))
+        });
+        g.throughput(Throughput::Elements(p.bounce_rays.len() as u64));
+        g.bench_function(format!("{name}_bounce"), |b| {
+            let mut hits = HitBatch::default();
+            b.iter(|| intersect_closest(scene, &p.bounce_rays, &mut hits))
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group("shade");
+        g.sample_size(20);
+        g.throughput(Throughput::Elements(p.camera_paths.len() as u64));
+        g.bench_function(name, |b| {
+            let (mut next, mut shadows) = (
+                RayBatch::default(),
+                ShadowBatch {
+                    per_path: SHADOW_RAYS as usize,
+                    ..Default::default()
+                },
+            );
+            b.iter_batched_ref(
+                || p.camera_paths.clone(),
+                |paths| {
+                    black_box(shade_hits(
+                        scene,
+                        p.params,
+                        &p.camera_rays,
+                        &p.camera_hits,
+                        paths,
+                        &mut next,
+                        &mut shadows,
+                    ))
+                },
+                BatchSize::LargeInput,
+            )
+        });
+        g.finish();
+
+        let mut g = c.benchmark_group("shadow");
+        g.sample_size(20);
+        let traced = p
+            .shadows
+            .contribution
+            .iter()
+            .filter(|c| **c != Vec3::ZERO)
+            .count();
+        g.throughput(Throughput::Elements(traced as u64));
+        g.bench_function(name, |b| {
+            b.iter_batched_ref(
+                || p.shadow_paths.clone(),
+                |paths| black_box(trace_shadow_rays(scene, &p.shadows, paths)),
+                BatchSize::LargeInput,
+            )
+        });
+        g.finish();
+    }
+
+    let mut g = c.benchmark_group("bvh_build");
+    g.sample_size(10);
+    let world = heavy_world();
+    let triangles: u64 = world
+        .query::<&Mesh>()
+        .iter()
+        .map(|m| m.indices.len() as u64)
+        .sum();
+    g.throughput(Throughput::Elements(triangles));
+    g.bench_function("heavy", |b| {
+        b.iter(|| black_box(flatten(&world, Path::new("heavy")).unwrap().bvh.nodes.len()))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, stages);
+criterion_main!(benches);
