@@ -16,7 +16,9 @@ use wavetrace::wavefront::{
 };
 use wavetrace::{FlatScene, flatten};
 
-const BATCH: u32 = 1 << 16;
+/// One batch: the whole 256 x 256 image, so the batch sees the scene as a render does.
+const SIDE: u32 = 256;
+const BATCH: u32 = SIDE * SIDE;
 /// The seed benchmark's shadow-ray count.
 const SHADOW_RAYS: u32 = 15;
 
@@ -95,7 +97,7 @@ struct Prepared {
 }
 
 fn prepare(scene: &FlatScene) -> Prepared {
-    let camera = PinholeCamera::new(&scene.camera, 800, 800);
+    let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
     let (mut paths, mut rays, mut hits, mut next) = (
         PathState::default(),
         RayBatch::default(),
@@ -147,7 +149,7 @@ fn stages(c: &mut Criterion) {
     let heavy = flatten(&heavy_world(), Path::new("heavy")).unwrap();
     for (name, scene) in [("seed_room", &room), ("heavy", &heavy)] {
         let p = prepare(scene);
-        let camera = PinholeCamera::new(&scene.camera, 800, 800);
+        let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
 
         let mut g = c.benchmark_group("generate");
         g.throughput(Throughput::Elements(BATCH as u64));

@@ -19,6 +19,25 @@ struct Cli {
 enum Command {
     /// Render a scene file to a PNG or OpenEXR image.
     Render(RenderArgs),
+    /// Reproduce the seed report's benchmark tables on the built-in room and print them next
+    /// to the report's seconds.
+    BenchSeed(BenchSeedArgs),
+}
+
+#[derive(Args)]
+struct BenchSeedArgs {
+    /// Image width (the report used 800).
+    #[arg(long, default_value_t = 800)]
+    width: u32,
+    /// Image height (the report used 800).
+    #[arg(long, default_value_t = 800)]
+    height: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Only Table 1 (shadow rays) or Table 2 (samples).
+    #[arg(long)]
+    table: Option<u8>,
 }
 
 #[derive(Args)]
@@ -62,6 +81,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(args),
+        Command::BenchSeed(args) => run_bench_seed(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -141,6 +161,76 @@ fn run_render(args: RenderArgs) -> Result<()> {
             output.display()
         );
         eprintln!("{}", stats.summary());
+        Ok(())
+    })
+}
+
+/// The seed report's tables: (samples per pixel, shadow rays, seconds in the report).
+const SEED_TABLE_1: [(u32, u32, f64); 4] = [
+    (50, 1, 84.4),
+    (50, 2, 107.0),
+    (50, 8, 236.1),
+    (50, 15, 384.8),
+];
+const SEED_TABLE_2: [(u32, u32, f64); 4] = [
+    (1, 15, 10.44),
+    (5, 15, 56.98),
+    (25, 15, 282.21),
+    (75, 15, 726.71),
+];
+
+fn run_bench_seed(args: BenchSeedArgs) -> Result<()> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    pool.install(|| {
+        let room_path = Path::new("builtin:room");
+        let scene = wavetrace::scene::load::load_scene_str(
+            room_path,
+            wavetrace::scene::load::BUILTIN_ROOM,
+        )?;
+        let flat = flatten(&scene.world, room_path)?;
+        let threads = rayon::current_num_threads();
+        println!(
+            "seed room, {}x{}, {threads} threads (the report: 800x800, 1 thread)",
+            args.width, args.height
+        );
+        for (number, table) in [(1, SEED_TABLE_1), (2, SEED_TABLE_2)] {
+            if args.table.is_some_and(|t| t != number) {
+                continue;
+            }
+            println!(
+                "\nTable {number}: {}",
+                if number == 1 {
+                    "shadow rays at 50 samples per pixel"
+                } else {
+                    "samples per pixel at 15 shadow rays"
+                }
+            );
+            println!(
+                "{:>5} {:>12} {:>12} {:>12} {:>10} {:>10}",
+                "spp", "shadow rays", "report (s)", "wavetrace (s)", "speed-up", "Mrays/s"
+            );
+            for (spp, shadow_rays, report_seconds) in table {
+                let settings = RenderSettings {
+                    width: args.width,
+                    height: args.height,
+                    spp,
+                    shadow_rays,
+                    ..RenderSettings::default()
+                };
+                let (_, stats) = render(&flat, &settings, |_| Flow::Continue)?;
+                let seconds = stats.wall_time.as_secs_f64();
+                // The report's times are for 800x800: scale them when another size is asked for.
+                let scaled = report_seconds * settings.pixel_count() as f64 / (800.0 * 800.0);
+                println!(
+                    "{spp:>5} {shadow_rays:>12} {scaled:>12.2} {seconds:>12.2} {:>9.1}x {:>10.1}",
+                    scaled / seconds,
+                    stats.total_rays() as f64 / seconds / 1e6
+                );
+            }
+        }
         Ok(())
     })
 }

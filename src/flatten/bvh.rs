@@ -7,6 +7,8 @@
 //! Leaves point at contiguous runs of primitive slots: the scene stores primitives in BVH
 //! order, so there is no index indirection at trace time.
 
+use super::spheres::intersect_sphere;
+use super::triangles::{OriginTerms, intersect_triangle_from};
 use super::{FlatScene, Shape};
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
@@ -54,20 +56,20 @@ pub struct Bvh4 {
     pub depth: usize,
 }
 
-/// Builds the BVH over `shapes`. Returns it with the permutation into BVH order: slot `i` of
-/// the BVH holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`]
-/// (only degenerate geometry does that).
+/// Builds the BVH over `shapes`. Returns it with the map from BVH slots to shapes: slot `i`
+/// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
+/// degenerate geometry does that).
 pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
-    let aabbs: Vec<Aabb> = shapes.iter().map(Shape::aabb).collect();
-    let leaf = if shapes.len() < SMALL_SCENE {
+    let leaf_size = if shapes.len() < SMALL_SCENE {
         1
     } else {
         MAX_LEAF_SIZE
     };
     let params = BvhBuildParams {
-        max_prims_per_leaf: leaf,
+        max_prims_per_leaf: leaf_size,
         ..BvhBuildParams::medium_build()
     };
+    let aabbs: Vec<Aabb> = shapes.iter().map(Shape::aabb).collect();
     let bvh2 = obvhs::bvh2::builder::build_bvh2(&aabbs, params, &mut Duration::default());
     let mut bvh = Bvh4::default();
     if !shapes.is_empty() {
@@ -305,7 +307,8 @@ impl Bvh4 {
 impl Bvh4 {
     /// Occlusion of a packet of up to [`PACKET_SIZE`] rays that share `origin`: bit `k` of
     /// the result is set when ray `k` is blocked within `[0, t_max[k]]`.
-    /// `intersect(slot, k)` tells whether primitive `slot` blocks ray `k`.
+    /// `intersect(slot, rays)` returns which of the rays in the bit set `rays` primitive
+    /// `slot` blocks.
     ///
     /// Nodes are tested once for the whole packet with interval arithmetic: on each axis
     /// where all directions have the same sign, the packet's inverse directions span
@@ -318,7 +321,7 @@ impl Bvh4 {
         origin: Vec3A,
         directions: &[Vec3A],
         t_max: &[f32],
-        mut intersect: impl FnMut(u32, usize) -> bool,
+        mut intersect: impl FnMut(u32, u32) -> u32,
     ) -> u32 {
         let n = directions.len();
         debug_assert!(n <= PACKET_SIZE && t_max.len() == n);
@@ -354,7 +357,7 @@ impl Bvh4 {
             let mut occluded = 0;
             for k in 0..n {
                 if self.any_hit(origin, directions[k], t_max[k], |slot, _| {
-                    if intersect(slot, k) {
+                    if intersect(slot, 1 << k) != 0 {
                         0.0
                     } else {
                         f32::INFINITY
@@ -390,14 +393,7 @@ impl Bvh4 {
                     continue;
                 }
                 for slot in node.child[k]..node.child[k] + count {
-                    let mut open = all & !occluded;
-                    while open != 0 {
-                        let ray = open.trailing_zeros() as usize;
-                        open &= open - 1;
-                        if intersect(slot, ray) {
-                            occluded |= 1 << ray;
-                        }
-                    }
+                    occluded |= intersect(slot, all & !occluded);
                     if occluded == all {
                         return occluded;
                     }
@@ -473,8 +469,34 @@ impl FlatScene {
     pub fn occluded_packet(&self, origin: Vec3A, directions: &[Vec3A], t_max: &[f32]) -> u32 {
         let shapes = &self.shapes;
         self.bvh
-            .any_hit_packet(origin, directions, t_max, |slot, k| {
-                shapes[slot as usize].intersect_t(origin, directions[k], t_max[k]) < f32::INFINITY
+            .any_hit_packet(origin, directions, t_max, |slot, mut open| {
+                let mut blocked = 0;
+                match &shapes[slot as usize] {
+                    Shape::Triangle(tri) => {
+                        let terms = OriginTerms::new(tri, origin);
+                        while open != 0 {
+                            let k = open.trailing_zeros() as usize;
+                            open &= open - 1;
+                            if intersect_triangle_from(tri, &terms, directions[k], 0.0, t_max[k])
+                                .is_some()
+                            {
+                                blocked |= 1 << k;
+                            }
+                        }
+                    }
+                    Shape::Sphere(sphere) => {
+                        while open != 0 {
+                            let k = open.trailing_zeros() as usize;
+                            open &= open - 1;
+                            if intersect_sphere(sphere, origin, directions[k], 0.0, t_max[k])
+                                .is_some()
+                            {
+                                blocked |= 1 << k;
+                            }
+                        }
+                    }
+                }
+                blocked
             })
     }
 }
@@ -559,8 +581,14 @@ mod tests {
                 let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
                 (directions[k], t_max[k]) = (to.normalize(), to.length());
             }
-            let occluded = bvh.any_hit_packet(origin, &directions[..n], &t_max[..n], |s, k| {
-                shapes[s as usize].intersect_t(origin, directions[k], t_max[k]) < f32::INFINITY
+            let occluded = bvh.any_hit_packet(origin, &directions[..n], &t_max[..n], |s, open| {
+                (0..n)
+                    .filter(|k| {
+                        open & (1 << k) != 0
+                            && shapes[s as usize].intersect_t(origin, directions[*k], t_max[*k])
+                                < f32::INFINITY
+                    })
+                    .fold(0, |m, k| m | 1 << k)
             });
             for k in 0..n {
                 let single = bvh.any_hit(origin, directions[k], t_max[k], |s, t| {

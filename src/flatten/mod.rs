@@ -172,9 +172,11 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         )
     })?;
     let ordered = || order.iter().map(|&i| &prims[i as usize]);
-    let source_index = order.clone();
+    // Lights come from the primitives, not the slots: a pre-split triangle owns several slots
+    // but is one light.
     let mut area_lights = Vec::new();
-    let emitter = ordered()
+    let light_of_primitive: Vec<u32> = prims
+        .iter()
         .map(|p| match p.emitter {
             Some(e) => {
                 let area = match p.shape {
@@ -193,6 +195,11 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             None => NO_EMITTER,
         })
         .collect();
+    let emitter = order
+        .iter()
+        .map(|&i| light_of_primitive[i as usize])
+        .collect();
+    let source_index = order.clone();
     Ok(FlatScene {
         shapes: ordered().map(|p| p.shape).collect(),
         vertex_normals: ordered().map(|p| p.normals).collect(),

@@ -63,20 +63,56 @@ pub fn intersect_triangle(
     tmin: f32,
     tmax: f32,
 ) -> Option<(f32, Vec2)> {
-    let ng = tri.e1.cross(tri.e2);
-    let det = ng.dot(direction);
+    intersect_triangle_from(tri, &OriginTerms::new(tri, origin), direction, tmin, tmax)
+}
+
+/// The parts of the triangle test that depend only on the ray origin, shared by all rays of
+/// a packet with a common origin.
+#[derive(Clone, Copy, Debug)]
+pub struct OriginTerms {
+    /// Geometric normal `e1 x e2`.
+    ng: Vec3A,
+    /// `v0 - origin`.
+    c: Vec3A,
+    /// `ng . c`.
+    ng_dot_c: f32,
+}
+
+impl OriginTerms {
+    /// The terms of `tri` for rays from `origin`.
+    #[inline(always)]
+    pub fn new(tri: &TriangleGeom, origin: Vec3A) -> Self {
+        let ng = tri.e1.cross(tri.e2);
+        let c = tri.v0 - origin;
+        OriginTerms {
+            ng,
+            c,
+            ng_dot_c: ng.dot(c),
+        }
+    }
+}
+
+/// [`intersect_triangle`] with the origin's terms computed beforehand.
+#[inline(always)]
+pub fn intersect_triangle_from(
+    tri: &TriangleGeom,
+    terms: &OriginTerms,
+    direction: Vec3A,
+    tmin: f32,
+    tmax: f32,
+) -> Option<(f32, Vec2)> {
+    let det = terms.ng.dot(direction);
     if det == 0.0 {
         return None; // parallel to the plane, or degenerate
     }
     let inv_det = 1.0 / det;
-    let c = tri.v0 - origin;
     // Distance first: most candidates (walls behind the segment's end, triangles behind the
     // origin) are rejected here, before the barycentric tests.
-    let t = ng.dot(c) * inv_det;
+    let t = terms.ng_dot_c * inv_det;
     if !(t >= tmin && t <= tmax) {
         return None;
     }
-    let r = direction.cross(c);
+    let r = direction.cross(terms.c);
     let u = -r.dot(tri.e2) * inv_det;
     let v = r.dot(tri.e1) * inv_det;
     (u >= 0.0 && v >= 0.0 && u + v <= 1.0).then_some((t, Vec2::new(u, v)))
