@@ -35,7 +35,7 @@ impl SphereGeom {
     }
 }
 
-/// Nearest intersection distance in `[tmin, tmax]`, from outside or inside.
+/// Nearest intersection distance in `(tmin, tmax]`, from outside or inside.
 ///
 /// Uses the formulation of "Precision Improvements for Ray/Sphere Intersection" (Ray Tracing
 /// Gems, ch. 7): the discriminant from the distance of the centre to the ray, and the
@@ -62,9 +62,9 @@ pub fn intersect_sphere(
     if t0 > t1 {
         std::mem::swap(&mut t0, &mut t1);
     }
-    if t0 >= tmin && t0 <= tmax {
+    if t0 > tmin && t0 <= tmax {
         Some(t0)
-    } else if t1 >= tmin && t1 <= tmax {
+    } else if t1 > tmin && t1 <= tmax {
         Some(t1)
     } else {
         None

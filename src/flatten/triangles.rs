@@ -53,7 +53,7 @@ impl TriangleGeom {
 }
 
 /// Möller-Trumbore ray-triangle test (the form with a precomputed normal, one cross product
-/// per test). Two-sided. Returns `(t, u, v)` for `tmin <= t <= tmax`, where the hit point is
+/// per test). Two-sided. Returns `(t, u, v)` for `tmin < t <= tmax`, where the hit point is
 /// `v0 + u e1 + v e2`; `None` for a miss, a parallel ray or a degenerate triangle.
 #[inline(always)]
 pub fn intersect_triangle(
@@ -109,7 +109,7 @@ pub fn intersect_triangle_from(
     // Distance first: most candidates (walls behind the segment's end, triangles behind the
     // origin) are rejected here, before the barycentric tests.
     let t = terms.ng_dot_c * inv_det;
-    if !(t >= tmin && t <= tmax) {
+    if !(t > tmin && t <= tmax) {
         return None;
     }
     let r = direction.cross(terms.c);

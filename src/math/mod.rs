@@ -27,7 +27,9 @@ pub fn max_component(c: Rgb) -> f32 {
 /// error `error` (per component) of `p` (pbrt's construction; handles leaving from inside).
 #[inline]
 pub fn offset_ray_origin(p: Vec3A, error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
-    let distance = n.abs().dot(error);
+    // Never zero: a point computed exactly (error 0, e.g. on the plane z = 0) still moves by
+    // at least one float, so the surface it leaves lies strictly behind the new origin.
+    let distance = n.abs().dot(error).max(f32::MIN_POSITIVE);
     let offset = if w.dot(n) < 0.0 {
         -distance * n
     } else {
@@ -49,4 +51,19 @@ pub fn offset_ray_origin(p: Vec3A, error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
         away(moved.y, offset.y),
         away(moved.z, offset.z),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_origin_leaves_an_exactly_computed_surface() {
+        // A point exactly on z = 0 has zero rounding error; the offset must still move it up.
+        let p = Vec3A::new(0.25, -0.5, 0.0);
+        let q = offset_ray_origin(p, Vec3A::ZERO, Vec3A::Z, Vec3A::new(0.1, 0.0, 1.0));
+        assert!(q.z > 0.0 && q.x == p.x && q.y == p.y);
+        let below = offset_ray_origin(p, Vec3A::ZERO, Vec3A::Z, -Vec3A::Z);
+        assert!(below.z < 0.0);
+    }
 }
