@@ -279,10 +279,18 @@ mod tests {
         // pdf_area integrates to 1 over all lights: sum(p_select / area * area) = 1.
         let total: f32 = table.lights.iter().map(|l| l.select_probability).sum();
         assert!((total - 1.0).abs() < 1e-6);
-        // Second light (area 2, radiance 1), seen from straight above the sampled point
-        // (0.6, 0.6, 0) at distance 1: weight = L cos / (d^2 pdf_area) = 1 / 0.25.
-        let s = table.sample(Vec3A::new(0.6, 0.6, 1.0), 0.75, Vec2::new(0.3, 0.3));
-        assert!((s.weight - Rgb::splat(4.0)).length() < 1e-4, "{}", s.weight);
+        // Second light (area 2, radiance 1, pdf_area = 0.5 / 2) seen from a point 1 above
+        // its plane: weight = L cos / (d^2 pdf_area) with cos = 1 / d.
+        let p = Vec3A::new(0.6, 0.6, 1.0);
+        let s = table.sample(p, 0.75, Vec2::new(0.3, 0.3));
+        let d = (s.point - p).length();
+        assert!(s.point.z == 0.0 && (s.distance - d).abs() < 1e-6);
+        let expected = (1.0 / d) / (d * d * 0.25);
+        assert!(
+            (s.weight - Rgb::splat(expected)).length() < 1e-4,
+            "{}",
+            s.weight
+        );
         // From below, the one-sided light's back faces the point: no light.
         let s = table.sample(Vec3A::new(0.6, 0.6, -1.0), 0.75, Vec2::new(0.3, 0.3));
         assert_eq!(s.weight, Rgb::ZERO);
