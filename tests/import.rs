@@ -727,6 +727,14 @@ fn unsupported_and_broken_files_give_errors_naming_file_and_problem() {
         "{e}"
     );
 
+    let mut overrun = base.clone();
+    overrun["accessors"][0]["count"] = json!(100);
+    let e = error_of(&write_gltf(&dir, "overrun.gltf", &overrun));
+    assert!(
+        e.contains("overrun.gltf") && e.contains("outside its buffer"),
+        "{e}"
+    );
+
     let text = serde_json::to_string(&base).unwrap();
     let truncated = dir.join("truncated.gltf");
     std::fs::write(&truncated, &text[..text.len() / 2]).unwrap();

@@ -420,7 +420,13 @@ fn read_primitive(
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let positions: Vec<Vec3> = reader
         .read_positions()
-        .ok_or_else(|| Error::input(path, at(), "the primitive has no POSITION attribute"))?
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                at(),
+                "POSITION is missing, or its accessor lies outside its buffer",
+            )
+        })?
         .map(Vec3::from)
         .collect();
     let n = positions.len();
@@ -443,9 +449,16 @@ fn read_primitive(
             );
         }
     }
-    let flat: Vec<u32> = match reader.read_indices() {
-        Some(indices) => indices.into_u32().collect(),
-        None => (0..n as u32).collect(),
+    let flat: Vec<u32> = match (primitive.indices(), reader.read_indices()) {
+        (_, Some(indices)) => indices.into_u32().collect(),
+        (None, None) => (0..n as u32).collect(), // non-indexed: consecutive triples
+        (Some(_), None) => {
+            return Err(Error::input(
+                path,
+                at(),
+                "the indices accessor lies outside its buffer",
+            ));
+        }
     };
     if flat.len() % 3 != 0 {
         return Err(Error::input(

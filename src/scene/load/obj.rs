@@ -41,7 +41,13 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         mtl_names_cell.borrow_mut().push(full.clone());
         tobj::load_mtl(&full)
     })
-    .map_err(|e| Error::input(path, None, format!("cannot parse OBJ: {e}")))?;
+    .map_err(|e| {
+        Error::input(
+            path,
+            first_failing_line(&text, &options).map(|l| format!("line {l}")),
+            format!("cannot parse OBJ: {e}"),
+        )
+    })?;
     let mut warnings = Vec::new();
     let materials = match materials {
         Ok(m) => m,
@@ -169,6 +175,28 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     })
 }
 
+/// The line at which tobj's parse first fails (tobj reports no position): the shortest
+/// failing prefix of the file, found by bisection.
+fn first_failing_line(text: &str, options: &tobj::LoadOptions) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let fails = |k: usize| {
+        let prefix = lines[..k].join("\n");
+        tobj::load_obj_buf(&mut prefix.as_bytes(), options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .is_err()
+    };
+    if !fails(lines.len()) {
+        return None;
+    }
+    let (mut good, mut bad) = (0, lines.len()); // parsing `good` lines works, `bad` fails
+    while bad - good > 1 {
+        let mid = (good + bad) / 2;
+        if fails(mid) { bad = mid } else { good = mid }
+    }
+    Some(bad)
+}
+
 fn face_error(path: &Path, line: Option<usize>, message: String) -> Error {
     Error::input(
         path,
@@ -287,16 +315,44 @@ pub(crate) fn triangulate_polygon(
             (a.x - b.x) * (a.y + b.y),
         );
     }
-    if !(normal.length_squared() > 0.0) {
-        return Ok(()); // zero area: nothing to render
-    }
-    let normal = normal.normalize();
+    let self_intersecting = || {
+        format!(
+            "the {}-sided polygon intersects itself and cannot be triangulated",
+            polygon.len()
+        )
+    };
+    let normal = if normal.length_squared() > 0.0 {
+        normal.normalize()
+    } else {
+        // Zero net area: a bow tie (refused below) or a degenerate polygon (skipped).
+        let (a, b, c) = (p(polygon[0]), p(polygon[1]), p(polygon[2]));
+        let n = (b - a).cross(c - a);
+        if !(n.length_squared() > 0.0) {
+            return Ok(());
+        }
+        n.normalize()
+    };
     let (u_axis, v_axis) = normal.any_orthonormal_pair();
     let flat: Vec<Vec2> = polygon
         .iter()
         .map(|&i| Vec2::new(p(i).dot(u_axis), p(i).dot(v_axis)))
         .collect();
     let cross = |a: Vec2, b: Vec2, c: Vec2| (b - a).perp_dot(c - a);
+    // Ear clipping assumes a simple polygon: refuse edges that properly cross.
+    let m = flat.len();
+    for i in 0..m {
+        for j in i + 2..m {
+            if i == 0 && j == m - 1 {
+                continue; // adjacent through the closing edge
+            }
+            let (a, b, c, d) = (flat[i], flat[(i + 1) % m], flat[j], flat[(j + 1) % m]);
+            let (d1, d2) = (cross(a, b, c), cross(a, b, d));
+            let (d3, d4) = (cross(c, d, a), cross(c, d, b));
+            if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+                return Err(self_intersecting());
+            }
+        }
+    }
     let mut remaining: Vec<usize> = (0..polygon.len()).collect();
     // Pass 0 takes strictly convex ears; pass 1 also collinear ones (they add zero-area
     // triangles, which flattening skips), so chains of collinear vertices cannot block it.
@@ -337,10 +393,7 @@ pub(crate) fn triangulate_polygon(
             }
         }
         if !clipped {
-            return Err(format!(
-                "the {}-sided polygon intersects itself and cannot be triangulated",
-                polygon.len()
-            ));
+            return Err(self_intersecting());
         }
     }
     out.push([
@@ -416,8 +469,21 @@ mod tests {
             Vec3::new(0.0, 2.0, 0.0),
         ];
         let mut tris = Vec::new();
-        // Its Newell area is zero: nothing is emitted rather than a wrong shape.
-        triangulate_polygon(&bow, &[0, 1, 2, 3], &mut tris).unwrap();
+        let e = triangulate_polygon(&bow, &[0, 1, 2, 3], &mut tris).unwrap_err();
+        assert!(e.contains("intersects itself"), "{e}");
+        // A pentagon whose first edge crosses the third.
+        let crossed = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 2.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+            Vec3::new(1.0, 3.0, 0.0),
+        ];
+        assert!(triangulate_polygon(&crossed, &[0, 1, 2, 3, 4], &mut tris).is_err());
+        // Collinear points only: nothing to render, no error.
+        let line = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X, 3.0 * Vec3::X];
+        tris.clear();
+        triangulate_polygon(&line, &[0, 1, 2, 3], &mut tris).unwrap();
         assert!(tris.is_empty());
     }
 }
