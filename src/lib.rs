@@ -30,6 +30,7 @@ pub mod math;
 pub mod output;
 pub mod scene;
 pub mod settings;
+pub mod texture;
 pub mod wavefront;
 
 pub use error::{Error, Result};

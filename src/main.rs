@@ -6,7 +6,8 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use wavetrace::{Flow, RenderSettings, flatten, load_scene, render, write_image};
+use wavetrace::scene::load::{LoadOptions, load_scene_with};
+use wavetrace::{Flow, RenderSettings, flatten, render, write_image};
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -17,7 +18,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene file to a PNG or OpenEXR image.
+    /// Render a scene file (.toml) or a model (.gltf, .glb, .obj) to a PNG or OpenEXR image.
     Render(RenderArgs),
     /// Reproduce the seed report's benchmark tables on the built-in room and print them next
     /// to the report's seconds.
@@ -42,16 +43,25 @@ struct BenchSeedArgs {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// Scene file (.toml).
+    /// Scene file (.toml) or model file (.gltf, .glb, .obj). A model with no emitter and no
+    /// light is placed in the seed room and seen from the room's camera.
     scene: PathBuf,
+    /// Place a model file in the seed room even if it has its own lights.
+    #[arg(long)]
+    in_room: bool,
+    /// Render from the camera of this name (default: the file's first camera).
+    #[arg(long)]
+    camera: Option<String>,
     /// Output image; the extension picks the format (.png: sRGB 8-bit; .exr: linear float).
     /// Default: the scene's name with .png, in the current directory.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Image width in pixels (default: the scene's, else 800).
+    /// Image width in pixels (default: the scene's, else 800, or from the height and the
+    /// camera's aspect ratio).
     #[arg(long)]
     width: Option<u32>,
-    /// Image height in pixels (default: the scene's, else 800).
+    /// Image height in pixels (default: the scene's, else 800, or from the width and the
+    /// camera's aspect ratio).
     #[arg(long)]
     height: Option<u32>,
     /// Samples per pixel (default: the scene's, else 16).
@@ -105,21 +115,25 @@ fn run_render(args: RenderArgs) -> Result<()> {
         .build()
         .context("cannot start worker threads")?;
     pool.install(|| {
-        let scene = load_scene(&args.scene)?;
+        let options = LoadOptions {
+            in_room: args.in_room,
+            camera: args.camera.clone(),
+        };
+        let scene = load_scene_with(&args.scene, &options)?;
         let flat = flatten(&scene.world, &args.scene)?;
-        for warning in &flat.warnings {
+        for warning in scene.warnings.iter().chain(&flat.warnings) {
             eprintln!("warning: {warning}");
         }
         let defaults = RenderSettings::default();
+        let (width, height) = image_size(
+            args.width.or(scene.defaults.width),
+            args.height.or(scene.defaults.height),
+            flat.camera.aspect_ratio,
+            (defaults.width, defaults.height),
+        );
         let settings = RenderSettings {
-            width: args
-                .width
-                .or(scene.defaults.width)
-                .unwrap_or(defaults.width),
-            height: args
-                .height
-                .or(scene.defaults.height)
-                .unwrap_or(defaults.height),
+            width,
+            height,
             spp: args.spp.or(scene.defaults.spp).unwrap_or(defaults.spp),
             shadow_rays: args
                 .shadow_rays
@@ -233,6 +247,26 @@ fn run_bench_seed(args: BenchSeedArgs) -> Result<()> {
         }
         Ok(())
     })
+}
+
+/// The image size: what is given; a missing side follows the camera's aspect ratio (width /
+/// height) when it has one; with neither side given the larger side is the default's.
+fn image_size(
+    width: Option<u32>,
+    height: Option<u32>,
+    aspect: Option<f32>,
+    default: (u32, u32),
+) -> (u32, u32) {
+    let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0);
+    let side = |x: f32| (x.round() as u32).max(1);
+    match (width, height, aspect) {
+        (Some(w), Some(h), _) => (w, h),
+        (Some(w), None, Some(a)) => (w, side(w as f32 / a)),
+        (None, Some(h), Some(a)) => (side(h as f32 * a), h),
+        (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
+        (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
+        (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
+    }
 }
 
 /// `scenes/room.toml` -> `room.png` in the current directory.

@@ -71,6 +71,24 @@ impl Bsdf {
         }
     }
 
+    /// The same model with its colour (albedo or tint) multiplied by `colour` (a texture).
+    #[inline]
+    pub fn tinted(self, colour: Rgb) -> Bsdf {
+        match self {
+            Bsdf::Lambertian { albedo } => Bsdf::Lambertian {
+                albedo: albedo * colour,
+            },
+            Bsdf::Mirror { tint } => Bsdf::Mirror {
+                tint: tint * colour,
+            },
+            Bsdf::Dielectric { ior, fresnel, tint } => Bsdf::Dielectric {
+                ior,
+                fresnel,
+                tint: tint * colour,
+            },
+        }
+    }
+
     /// BSDF value for a pair of directions (zero for delta lobes).
     #[inline]
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {

@@ -1,9 +1,11 @@
-//! The light table: every emitting primitive, chosen in proportion to its emitted power and
-//! sampled uniformly by area (the seed's equation 16, generalised to many emitters).
+//! The light table: every emitting primitive (sampled uniformly by area, the seed's equation
+//! 16 generalised to many emitters) and every punctual light (point, spot, directional; delta
+//! lights reached only by next-event estimation), each chosen in proportion to its power.
 
 use super::Shape;
 use crate::math::sampling::{sample_discrete, sample_triangle, sample_uniform_sphere};
 use crate::math::{Rgb, Vec2, Vec3A, luminance};
+use std::f32::consts::PI;
 
 /// One emitting primitive.
 #[derive(Clone, Copy, Debug)]
@@ -20,63 +22,160 @@ pub struct AreaLight {
     pub select_probability: f32,
 }
 
-/// A point sampled on a light.
+/// A punctual light: a point, spot or directional light of zero size. Rays never hit it.
 #[derive(Clone, Copy, Debug)]
-pub struct LightSample {
-    /// The point, world space.
-    pub point: Vec3A,
-    /// Geometric normal at the point (the emitting front side).
-    pub normal: Vec3A,
-    /// Radiance emitted from the front side.
-    pub radiance: Rgb,
-    /// Whether the back face emits too.
-    pub two_sided: bool,
-    /// Density of the point per unit area, including the choice of the light.
-    pub pdf_area: f32,
+pub struct DeltaLight {
+    /// Where it is and which way it shines.
+    pub kind: DeltaKind,
+    /// Radiant intensity (W/sr) of point and spot lights; irradiance (W/m^2) of directional ones.
+    pub intensity: Rgb,
+    /// Emitted power (luminance-weighted), for the choice among lights.
+    pub power: f32,
+    /// Probability of choosing this light.
+    pub select_probability: f32,
 }
 
-/// All lights with the cumulative distribution of their power.
+/// Geometry of a [`DeltaLight`], world space.
+#[derive(Clone, Copy, Debug)]
+pub enum DeltaKind {
+    /// Shines equally in every direction from `position`.
+    Point {
+        /// Position.
+        position: Vec3A,
+    },
+    /// Shines from `position` into a cone about `direction`, with glTF's smooth falloff
+    /// between the inner and outer cone (`attenuation = clamp((cos - cos_outer) / (cos_inner - cos_outer))^2`).
+    Spot {
+        /// Position.
+        position: Vec3A,
+        /// Axis of the cone (unit).
+        direction: Vec3A,
+        /// Cosine of the inner cone angle.
+        cos_inner: f32,
+        /// Cosine of the outer cone angle.
+        cos_outer: f32,
+    },
+    /// Parallel light travelling along `direction` (unit).
+    Directional {
+        /// Direction the light travels in.
+        direction: Vec3A,
+    },
+}
+
+impl DeltaLight {
+    /// A point light of intensity `intensity` W/sr.
+    pub fn point(position: Vec3A, intensity: Rgb) -> Self {
+        DeltaLight {
+            kind: DeltaKind::Point { position },
+            intensity,
+            power: 4.0 * PI * luminance(intensity),
+            select_probability: 0.0,
+        }
+    }
+
+    /// A spot light; cone angles in radians from the axis.
+    pub fn spot(position: Vec3A, direction: Vec3A, intensity: Rgb, inner: f32, outer: f32) -> Self {
+        let (cos_inner, cos_outer) = (inner.cos(), outer.cos());
+        DeltaLight {
+            kind: DeltaKind::Spot {
+                position,
+                direction,
+                cos_inner,
+                cos_outer,
+            },
+            intensity,
+            // The solid angle of the cone halfway between the inner and outer angles.
+            power: 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * luminance(intensity),
+            select_probability: 0.0,
+        }
+    }
+
+    /// A directional light of irradiance `irradiance` W/m^2; its power is what falls on the
+    /// disk of radius `scene_radius` (the scene's bounding sphere) facing it.
+    pub fn directional(direction: Vec3A, irradiance: Rgb, scene_radius: f32) -> Self {
+        DeltaLight {
+            kind: DeltaKind::Directional { direction },
+            intensity: irradiance,
+            power: PI * scene_radius * scene_radius * luminance(irradiance),
+            select_probability: 0.0,
+        }
+    }
+}
+
+/// A light sample seen from a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// The point on the light (unused for directional lights).
+    pub point: Vec3A,
+    /// Unit direction from the shading point toward the light.
+    pub wi: Vec3A,
+    /// Distance to `point`; infinite for directional lights.
+    pub distance: f32,
+    /// Incident radiance over the sample's density, per unit of `|cos|` at the receiver: the
+    /// estimate is `f * |ns . wi| * weight`. Zero when the light does not shine toward the point.
+    pub weight: Rgb,
+}
+
+/// All lights (area lights first, then punctual ones) with the cumulative distribution of
+/// their power.
 #[derive(Clone, Debug, Default)]
 pub struct LightTable {
-    /// The lights.
+    /// The emitting primitives (indexed by `FlatScene::emitter`).
     pub lights: Vec<AreaLight>,
-    /// Running sum of the lights' power; the last entry is the total.
+    /// The punctual lights.
+    pub delta_lights: Vec<DeltaLight>,
+    /// Running sum of the lights' power, area lights then punctual ones; the last entry is the total.
     pub power_cdf: Vec<f32>,
 }
 
 impl LightTable {
-    /// Builds the table; `power = luminance(radiance) * area * pi` per emitting side.
-    pub fn new(mut lights: Vec<AreaLight>) -> Self {
+    /// Builds the table; an area light's `power = luminance(radiance) * area * pi` per
+    /// emitting side.
+    pub fn new(mut lights: Vec<AreaLight>, mut delta_lights: Vec<DeltaLight>) -> Self {
         let power = |l: &AreaLight| {
-            luminance(l.radiance)
-                * l.area
-                * std::f32::consts::PI
-                * if l.two_sided { 2.0 } else { 1.0 }
+            luminance(l.radiance) * l.area * PI * if l.two_sided { 2.0 } else { 1.0 }
         };
-        let mut total = 0.0f64;
-        let power_cdf = lights
+        let powers: Vec<f64> = lights
             .iter()
-            .map(|l| {
-                total += power(l) as f64;
-                total as f32
+            .map(|l| power(l) as f64)
+            .chain(delta_lights.iter().map(|l| l.power as f64))
+            .collect();
+        let total: f64 = powers.iter().sum();
+        let mut running = 0.0f64;
+        let power_cdf = powers
+            .iter()
+            .map(|p| {
+                running += p;
+                running as f32
             })
             .collect();
-        for l in &mut lights {
-            l.select_probability = (power(l) as f64 / total) as f32;
+        let probability = |p: f64| (p / total) as f32;
+        for (l, &p) in lights.iter_mut().zip(&powers) {
+            l.select_probability = probability(p);
         }
-        LightTable { lights, power_cdf }
+        for (l, &p) in delta_lights.iter_mut().zip(&powers[lights.len()..]) {
+            l.select_probability = probability(p);
+        }
+        LightTable {
+            lights,
+            delta_lights,
+            power_cdf,
+        }
     }
 
     /// Whether the scene has any light to sample.
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.lights.is_empty()
+        self.power_cdf.is_empty()
     }
 
-    /// Chooses a light with `u_pick` and a point on it with `u`.
+    /// Chooses a light with `u_pick` and a point on it with `u`, as seen from `p`.
     #[inline]
-    pub fn sample(&self, u_pick: f32, u: Vec2) -> LightSample {
-        let light = &self.lights[sample_discrete(&self.power_cdf, u_pick)];
+    pub fn sample(&self, p: Vec3A, u_pick: f32, u: Vec2) -> LightSample {
+        let index = sample_discrete(&self.power_cdf, u_pick);
+        let Some(light) = self.lights.get(index) else {
+            return self.delta_lights[index - self.lights.len()].sample_from(p);
+        };
         let (point, normal) = match light.shape {
             Shape::Triangle(t) => {
                 let b = sample_triangle(u);
@@ -87,12 +186,70 @@ impl LightTable {
                 (s.center + s.radius * n, n)
             }
         };
+        let to_light = point - p;
+        let distance_squared = to_light.length_squared();
+        let distance = distance_squared.sqrt();
+        let wi = to_light / distance;
+        let cos_light = -normal.dot(wi);
+        let shines = cos_light > 0.0 || (light.two_sided && cos_light < 0.0);
+        let pdf_area = light.select_probability / light.area;
+        let weight = if shines && distance_squared > 0.0 {
+            light.radiance * (cos_light.abs() / (distance_squared * pdf_area))
+        } else {
+            Rgb::ZERO
+        };
         LightSample {
             point,
-            normal,
-            radiance: light.radiance,
-            two_sided: light.two_sided,
-            pdf_area: light.select_probability / light.area,
+            wi,
+            distance,
+            weight,
+        }
+    }
+}
+
+impl DeltaLight {
+    /// The light's sample as seen from `p` (there is only one direction to it).
+    #[inline]
+    fn sample_from(&self, p: Vec3A) -> LightSample {
+        let inv_p = 1.0 / self.select_probability;
+        let towards = |position: Vec3A| {
+            let to_light = position - p;
+            let d2 = to_light.length_squared();
+            let d = d2.sqrt();
+            (to_light / d, d, if d2 > 0.0 { inv_p / d2 } else { 0.0 })
+        };
+        match self.kind {
+            DeltaKind::Point { position } => {
+                let (wi, distance, w) = towards(position);
+                LightSample {
+                    point: position,
+                    wi,
+                    distance,
+                    weight: self.intensity * w,
+                }
+            }
+            DeltaKind::Spot {
+                position,
+                direction,
+                cos_inner,
+                cos_outer,
+            } => {
+                let (wi, distance, w) = towards(position);
+                let cos = -wi.dot(direction);
+                let t = ((cos - cos_outer) / (cos_inner - cos_outer).max(1e-3)).clamp(0.0, 1.0);
+                LightSample {
+                    point: position,
+                    wi,
+                    distance,
+                    weight: self.intensity * (w * t * t),
+                }
+            }
+            DeltaKind::Directional { direction } => LightSample {
+                point: p - direction,
+                wi: -direction,
+                distance: f32::INFINITY,
+                weight: self.intensity * inv_p,
+            },
         }
     }
 }
@@ -117,16 +274,53 @@ mod tests {
             select_probability: 0.0,
         };
         // Same power: small bright and large dim.
-        let table = LightTable::new(vec![light(tri(1.0), 4.0), light(tri(2.0), 1.0)]);
+        let table = LightTable::new(vec![light(tri(1.0), 4.0), light(tri(2.0), 1.0)], vec![]);
         assert!((table.lights[0].select_probability - 0.5).abs() < 1e-6);
         // pdf_area integrates to 1 over all lights: sum(p_select / area * area) = 1.
         let total: f32 = table.lights.iter().map(|l| l.select_probability).sum();
         assert!((total - 1.0).abs() < 1e-6);
-        let s = table.sample(0.75, Vec2::new(0.3, 0.3));
+        // Second light (area 2, radiance 1, pdf_area = 0.5 / 2) seen from a point 1 above
+        // its plane: weight = L cos / (d^2 pdf_area) with cos = 1 / d.
+        let p = Vec3A::new(0.6, 0.6, 1.0);
+        let s = table.sample(p, 0.75, Vec2::new(0.3, 0.3));
+        let d = (s.point - p).length();
+        assert!(s.point.z == 0.0 && (s.distance - d).abs() < 1e-6);
+        let expected = (1.0 / d) / (d * d * 0.25);
         assert!(
-            (s.pdf_area - 0.5 / 2.0).abs() < 1e-6,
-            "second light, area 2"
+            (s.weight - Rgb::splat(expected)).length() < 1e-4,
+            "{}",
+            s.weight
         );
-        assert!((s.normal - Vec3A::Z).length() < 1e-6);
+        // From below, the one-sided light's back faces the point: no light.
+        let s = table.sample(Vec3A::new(0.6, 0.6, -1.0), 0.75, Vec2::new(0.3, 0.3));
+        assert_eq!(s.weight, Rgb::ZERO);
+    }
+
+    #[test]
+    fn punctual_lights_follow_the_inverse_square_law_and_the_spot_cone() {
+        let point = DeltaLight::point(Vec3A::new(0.0, 0.0, 2.0), Rgb::splat(8.0));
+        let spot = DeltaLight::spot(
+            Vec3A::new(0.0, 0.0, 2.0),
+            Vec3A::NEG_Z,
+            Rgb::splat(8.0),
+            0.2,
+            0.4,
+        );
+        let table = LightTable::new(vec![], vec![point, spot]);
+        let p_point = table.delta_lights[0].select_probability;
+        let s = table.sample(Vec3A::ZERO, 0.0, Vec2::ZERO);
+        assert!((s.weight.x - 8.0 / 4.0 / p_point).abs() < 1e-4);
+        assert!((s.wi - Vec3A::Z).length() < 1e-6 && (s.distance - 2.0).abs() < 1e-6);
+        // The spot: full on its axis, nothing outside the outer cone.
+        let p_spot = table.delta_lights[1].select_probability;
+        let s = table.sample(Vec3A::ZERO, 0.999, Vec2::ZERO);
+        assert!((s.weight.x - 8.0 / 4.0 / p_spot).abs() < 1e-3);
+        let s = table.sample(Vec3A::new(2.0, 0.0, 0.0), 0.999, Vec2::ZERO);
+        assert_eq!(s.weight, Rgb::ZERO);
+        let sun = DeltaLight::directional(Vec3A::NEG_Z, Rgb::splat(3.0), 1.0);
+        let table = LightTable::new(vec![], vec![sun]);
+        let s = table.sample(Vec3A::ZERO, 0.5, Vec2::ZERO);
+        assert!((s.weight - Rgb::splat(3.0)).length() < 1e-6 && s.distance.is_infinite());
+        assert!((s.wi - Vec3A::Z).length() < 1e-6);
     }
 }

@@ -2,8 +2,9 @@
 //!
 //! [`flatten`] validates the world once and turns it into an immutable [`FlatScene`]:
 //! world-space primitives in BVH order (so the BVH's slots index every per-primitive column
-//! directly, with no indirection), a material table, a light table and one BVH over all
-//! primitives. The renderer's hot loops then assume valid data.
+//! directly, with no indirection), a material table with its textures, a light table (area
+//! and punctual lights) and one BVH over all primitives. The renderer's hot loops then assume
+//! valid data.
 
 pub mod bvh;
 pub mod lights;
@@ -12,15 +13,21 @@ pub mod triangles;
 
 use crate::bsdf::Bsdf;
 use crate::error::{Error, Result};
-use crate::math::{Mat3A, Vec3, Vec3A};
-use crate::scene::{Camera, Emitter, Material, Mesh, Name, Sphere, Transform};
-use lights::{AreaLight, LightTable};
+use crate::math::{Mat3A, Vec2, Vec3, Vec3A};
+use crate::scene::{
+    AlbedoTexture, Camera, Emitter, Material, Mesh, Name, PunctualLight, Sphere, Transform,
+};
+use crate::texture::Texture;
+use lights::{AreaLight, DeltaLight, LightTable};
 use spheres::SphereGeom;
 use std::path::Path;
+use std::sync::Arc;
 use triangles::TriangleGeom;
 
 /// Marks a primitive that emits nothing in [`FlatScene::emitter`].
 pub const NO_EMITTER: u32 = u32::MAX;
+/// Marks an untextured material in [`FlatScene::material_texture`].
+pub const NO_TEXTURE: u32 = u32::MAX;
 
 /// The geometry of one primitive, as the intersection test reads it (64 bytes).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,13 +45,21 @@ pub struct FlatScene {
     /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
     /// and for spheres.
     pub vertex_normals: Vec<[Vec3; 3]>,
+    /// Texture coordinates of the three vertices per slot (zero when the mesh has none);
+    /// read only for textured materials.
+    pub vertex_uvs: Vec<[Vec2; 3]>,
     /// Material index per slot, into `materials`.
     pub material: Vec<u32>,
     /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
     pub emitter: Vec<u32>,
     /// Distinct materials.
     pub materials: Vec<Bsdf>,
-    /// Emitting primitives.
+    /// Texture per material, into `textures`, or [`NO_TEXTURE`]: it multiplies the
+    /// material's colour at the hit's texture coordinates.
+    pub material_texture: Vec<u32>,
+    /// Distinct textures.
+    pub textures: Vec<Arc<Texture>>,
+    /// Emitting primitives and punctual lights.
     pub lights: LightTable,
     /// The BVH over `shapes` (slot `i` is `shapes[i]`).
     pub bvh: bvh::Bvh4,
@@ -61,49 +76,61 @@ pub struct FlatScene {
 struct Primitive {
     shape: Shape,
     normals: [Vec3; 3],
+    uvs: [Vec2; 3],
     material: u32,
     emitter: Option<Emitter>,
 }
 
 /// Flattens the world into a [`FlatScene`]. `path` names the scene in errors.
+/// The camera used is the first one (the earliest spawned).
 pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
-    let mut cameras = world.query::<&Camera>();
-    let camera = *cameras
+    let camera = world
+        .query::<(hecs::Entity, &Camera)>()
         .iter()
-        .next()
+        .min_by_key(|(e, _)| e.id())
+        .map(|(_, c)| *c)
         .ok_or_else(|| Error::input(path, None, "the scene has no camera"))?;
-    drop(cameras);
 
-    let mut materials: Vec<Bsdf> = Vec::new();
-    let mut material_index = |m: &Material| -> u32 {
+    let mut materials: Vec<(Bsdf, u32)> = Vec::new();
+    let mut textures: Vec<Arc<Texture>> = Vec::new();
+    let mut material_index = |m: &Material, texture: Option<&AlbedoTexture>| -> u32 {
         let bsdf = bsdf_of(m);
-        let found = materials.iter().position(|b| *b == bsdf);
+        let texture = texture.map_or(NO_TEXTURE, |t| {
+            let found = textures.iter().position(|known| Arc::ptr_eq(known, &t.0));
+            found.unwrap_or_else(|| {
+                textures.push(t.0.clone());
+                textures.len() - 1
+            }) as u32
+        });
+        let found = materials.iter().position(|b| *b == (bsdf, texture));
         found.unwrap_or_else(|| {
-            materials.push(bsdf);
+            materials.push((bsdf, texture));
             materials.len() - 1
         }) as u32
     };
 
     let mut prims: Vec<Primitive> = Vec::new();
     let mut warnings = Vec::new();
-    for (name, transform, mesh, material, emitter) in world
+    for (name, transform, mesh, material, texture, emitter) in world
         .query::<(
             Option<&Name>,
             Option<&Transform>,
             &Mesh,
             &Material,
+            Option<&AlbedoTexture>,
             Option<&Emitter>,
         )>()
         .iter()
     {
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
-        let material = material_index(material);
+        let material = material_index(material, texture);
         let emitter = validate_emitter(emitter, path, name)?;
-        let skipped = flatten_mesh(mesh, &transform, path, name, |shape, normals| {
+        let skipped = flatten_mesh(mesh, &transform, path, name, |shape, normals, uvs| {
             prims.push(Primitive {
                 shape,
                 normals,
+                uvs,
                 material,
                 emitter,
             })
@@ -149,15 +176,18 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
                 "radius must be positive and the centre finite",
             ));
         }
-        let material = material_index(material);
+        let material = material_index(material, None);
         let emitter = validate_emitter(emitter, path, name)?;
         prims.push(Primitive {
             shape: Shape::Sphere(geom),
             normals: [Vec3::ZERO; 3],
+            uvs: [Vec2::ZERO; 3],
             material,
             emitter,
         });
     }
+
+    let delta_lights = punctual_lights(world, &prims, path)?;
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let shapes_unordered: Vec<Shape> = prims.iter().map(|p| p.shape).collect();
@@ -203,15 +233,84 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
     Ok(FlatScene {
         shapes: ordered().map(|p| p.shape).collect(),
         vertex_normals: ordered().map(|p| p.normals).collect(),
+        vertex_uvs: ordered().map(|p| p.uvs).collect(),
         material: ordered().map(|p| p.material).collect(),
         emitter,
-        materials,
-        lights: LightTable::new(area_lights),
+        material_texture: materials.iter().map(|m| m.1).collect(),
+        materials: materials.iter().map(|m| m.0).collect(),
+        textures,
+        lights: LightTable::new(area_lights, delta_lights),
         bvh,
         source_index,
         camera,
         warnings,
     })
+}
+
+/// Punctual lights in world space. A directional light's power is taken over the disk that
+/// the scene's bounding sphere casts, so that it is chosen in proportion to what it delivers.
+fn punctual_lights(
+    world: &hecs::World,
+    prims: &[Primitive],
+    path: &Path,
+) -> Result<Vec<DeltaLight>> {
+    let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
+    for p in prims {
+        let b = p.shape.aabb();
+        lo = lo.min(b.min);
+        hi = hi.max(b.max);
+    }
+    let scene_radius = if lo.x <= hi.x {
+        ((hi - lo).length() * 0.5).max(1e-3)
+    } else {
+        1.0
+    };
+    let mut out = Vec::new();
+    for (name, transform, light) in world
+        .query::<(Option<&Name>, Option<&Transform>, &PunctualLight)>()
+        .iter()
+    {
+        let name = name.map_or("unnamed light", |n| n.0.as_str());
+        let t = transform.copied().unwrap_or_default().0;
+        let position = t.transform_point3a(Vec3A::ZERO);
+        let direction = t.transform_vector3a(Vec3A::NEG_Z).normalize_or_zero();
+        let bad = |m: &str| {
+            Err(Error::input(
+                path,
+                Some(format!("light '{name}'")),
+                m.to_string(),
+            ))
+        };
+        if !position.is_finite() || direction == Vec3A::ZERO {
+            return bad("the light's transform is degenerate");
+        }
+        let delta = match *light {
+            PunctualLight::Point { intensity } => DeltaLight::point(position, intensity),
+            PunctualLight::Spot {
+                intensity,
+                inner_cone,
+                outer_cone,
+            } => {
+                if !(0.0 <= inner_cone
+                    && inner_cone < outer_cone
+                    && outer_cone <= std::f32::consts::FRAC_PI_2)
+                {
+                    return bad("spot cone angles must satisfy 0 <= inner < outer <= pi/2");
+                }
+                DeltaLight::spot(position, direction, intensity, inner_cone, outer_cone)
+            }
+            PunctualLight::Directional { irradiance } => {
+                DeltaLight::directional(direction, irradiance, scene_radius)
+            }
+        };
+        if !(delta.intensity.is_finite() && delta.intensity.min_element() >= 0.0) {
+            return bad("the light's intensity must be finite and non-negative");
+        }
+        if delta.intensity.max_element() > 0.0 {
+            out.push(delta);
+        }
+    }
+    Ok(out)
 }
 
 /// The render-side scattering model of a scene material.
@@ -244,7 +343,7 @@ fn flatten_mesh(
     world_from_object: &crate::math::Affine3A,
     path: &Path,
     name: &str,
-    mut emit: impl FnMut(Shape, [Vec3; 3]),
+    mut emit: impl FnMut(Shape, [Vec3; 3], [Vec2; 3]),
 ) -> Result<usize> {
     let at = || Some(format!("mesh '{name}'"));
     let n = mesh.positions.len();
@@ -253,6 +352,13 @@ fn flatten_mesh(
             path,
             at(),
             format!("{} normals for {n} positions", mesh.normals.len()),
+        ));
+    }
+    if !mesh.uvs.is_empty() && mesh.uvs.len() != n {
+        return Err(Error::input(
+            path,
+            at(),
+            format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
         ));
     }
     if let Some(bad) = mesh.positions.iter().position(|p| !p.is_finite()) {
@@ -299,7 +405,12 @@ fn flatten_mesh(
         } else {
             normals
         };
-        emit(Shape::Triangle(geom), normals);
+        let uvs = if mesh.uvs.is_empty() {
+            [Vec2::ZERO; 3]
+        } else {
+            [a, b, c].map(|i| mesh.uvs[i as usize])
+        };
+        emit(Shape::Triangle(geom), normals, uvs);
     }
     Ok(skipped)
 }

@@ -2,6 +2,8 @@
 
 pub use crate::bsdf::FresnelModel;
 use crate::math::{Affine3A, Rgb, Vec2, Vec3};
+use crate::texture::Texture;
+use std::sync::Arc;
 
 /// Object-to-world placement of an entity (`world_from_object`).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,6 +76,38 @@ pub struct Emitter {
     pub radiance: Rgb,
     /// Whether the back face emits too; by default only the front face does.
     pub two_sided: bool,
+}
+
+/// A colour texture that multiplies the entity's material colour (the Lambertian albedo,
+/// the mirror or glass tint) at the texture coordinates of its [`Mesh`] (glTF
+/// `baseColorTexture`, MTL `map_Kd`). Shared between the entities that use it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AlbedoTexture(pub Arc<Texture>);
+
+/// A punctual (delta) light at the entity's origin, shining along the entity's local `-z`
+/// (glTF `KHR_lights_punctual`). Rays never hit it; it is reached only by next-event
+/// estimation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PunctualLight {
+    /// Emits equally in every direction.
+    Point {
+        /// Radiant intensity, W/sr per colour channel (glTF's candela, read as W/sr).
+        intensity: Rgb,
+    },
+    /// A point light restricted to a cone about `-z`, with glTF's smooth angular falloff.
+    Spot {
+        /// Radiant intensity on the axis, W/sr.
+        intensity: Rgb,
+        /// Angle from the axis (radians) inside which the intensity is full.
+        inner_cone: f32,
+        /// Angle from the axis (radians) outside which there is no light.
+        outer_cone: f32,
+    },
+    /// Parallel light travelling along `-z`, as from an infinitely distant source.
+    Directional {
+        /// Irradiance on a surface facing the light, W/m^2 (glTF's lux, read as W/m^2).
+        irradiance: Rgb,
+    },
 }
 
 /// A pinhole camera in world space.

@@ -3,7 +3,7 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use crate::flatten::spheres::SphereGeom;
-use crate::flatten::{FlatScene, NO_EMITTER, Shape};
+use crate::flatten::{FlatScene, NO_EMITTER, NO_TEXTURE, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
 use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
@@ -175,14 +175,24 @@ fn shade_one(
             *path.radiance += *path.throughput * light.radiance;
         }
     }
-    let bsdf = scene.materials[scene.material[slot] as usize];
+    let material = scene.material[slot] as usize;
+    let mut bsdf = scene.materials[material];
+    let texture = scene.material_texture[material];
+    if texture != NO_TEXTURE {
+        // The texture multiplies the material's colour at the interpolated coordinates.
+        let [t0, t1, t2] = scene.vertex_uvs[slot];
+        let b = hit.barycentric;
+        let uv = t0 * (1.0 - b.x - b.y) + t1 * b.x + t2 * b.y;
+        bsdf = bsdf.tinted(scene.textures[texture as usize].lookup(uv));
+    }
     if bsdf.is_black() {
         return false; // e.g. a light source: it reflects nothing
     }
     let frame = Frame::from_normal(ns);
     let wo_local = frame.to_local(wo);
 
-    // --- Next-event estimation: N shadow rays to points chosen by power and area.
+    // --- Next-event estimation: N shadow rays to lights chosen by power (points on area
+    // lights uniform by area; punctual lights have one point).
     let next_event = params.shadow_rays > 0 && !bsdf.is_delta() && !scene.lights.is_empty();
     if next_event {
         let inv_n = 1.0 / params.shadow_rays as f32;
@@ -194,29 +204,29 @@ fn shade_one(
         for j in 0..params.shadow_rays as usize {
             let d0 = dim::SHADOW_FIRST + dim::PER_SHADOW_RAY * j as u32;
             let light = scene.lights.sample(
+                p,
                 rng::uniform(key, bounce, d0),
                 rng::uniform2(key, bounce, d0 + 1),
             );
-            let to_light = light.point - p;
-            let distance_squared = to_light.length_squared();
-            let wi = to_light / distance_squared.sqrt();
-            let cos_light = -light.normal.dot(wi);
-            if !(cos_light > 0.0 || (light.two_sided && cos_light < 0.0))
-                || (ng.dot(wi) > 0.0) != front
-            {
-                continue; // the light's back faces us, or the light is behind the surface
+            let wi = light.wi;
+            if light.weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
+                continue; // the light does not shine here, or it is behind the surface
             }
             let f = bsdf.eval(wo_local, frame.to_local(wi));
             if f == Rgb::ZERO {
                 continue;
             }
-            let geometry = ns.dot(wi).abs() * cos_light.abs() / distance_squared;
-            let segment = light.point - origin;
-            let length = segment.length();
-            shadow.direction[j] = segment / length;
-            shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
+            if light.distance.is_finite() {
+                let segment = light.point - origin;
+                let length = segment.length();
+                shadow.direction[j] = segment / length;
+                shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
+            } else {
+                shadow.direction[j] = wi; // a directional light: nothing may block the way out
+                shadow.t_max[j] = f32::INFINITY;
+            }
             shadow.contribution[j] =
-                *path.throughput * f * light.radiance * (geometry * inv_n / light.pdf_area);
+                *path.throughput * f * light.weight * (ns.dot(wi).abs() * inv_n);
         }
     }
 

@@ -1,9 +1,10 @@
 //! The TOML scene format: cameras, named materials, and the seed's primitives (triangle,
 //! quad, polygon, tetrahedron, sphere) with transforms. A file may include others; the
 //! including file's camera and `[render]` settings win, its materials replace same-named ones,
-//! and shapes accumulate. The README documents the format with `scenes/room.toml`.
+//! and shapes and models accumulate. `[[model]]` tables place glTF/OBJ files (relative to
+//! the scene file that names them). The README documents the format with `scenes/room.toml`.
 
-use super::{BUILTIN_ROOM, Scene, SceneDefaults};
+use super::{BUILTIN_ROOM, Scene, SceneDefaults, UpAxis, bounding_box, import_model, place};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Quat, Vec3};
 use crate::scene::{Camera, Emitter, FresnelModel, Material, Mesh, Name, Sphere, Transform};
@@ -27,6 +28,31 @@ struct SceneFile {
     materials: BTreeMap<String, Spanned<MaterialDef>>,
     #[serde(default, rename = "shape")]
     shapes: Vec<Spanned<ShapeDef>>,
+    #[serde(default, rename = "model")]
+    models: Vec<Spanned<ModelDef>>,
+}
+
+/// `[[model]]`: a glTF or OBJ file placed in the scene.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModelDef {
+    /// Path relative to the scene file.
+    file: Spanned<String>,
+    /// Where the model's anchor lands: its origin, or with `fit` its bottom centre.
+    #[serde(default)]
+    position: Option<[f32; 3]>,
+    /// Degrees about x, then y, then z (about the anchor).
+    #[serde(default)]
+    rotation: Option<[f32; 3]>,
+    #[serde(default)]
+    scale: Option<ScaleDef>,
+    /// The file's up axis; "y" files are turned to +z up.
+    #[serde(default)]
+    up: UpAxis,
+    /// Scale so that the largest extent equals this, anchored at the bottom centre.
+    fit: Option<f32>,
+    /// A material of the scene replacing the file's.
+    material: Option<Spanned<String>>,
 }
 
 /// `[camera]`: a pinhole looking from `eye` at `look_at`.
@@ -139,6 +165,7 @@ struct Gathered {
     defaults: SceneDefaults,
     materials: BTreeMap<String, Material>,
     shapes: Vec<(Source, Spanned<ShapeDef>)>,
+    models: Vec<(Source, Spanned<ModelDef>)>,
 }
 
 /// Loads a TOML scene from `text`, which was read from `path`.
@@ -215,6 +242,8 @@ fn gather(source: Source, stack: &mut Vec<PathBuf>, out: &mut Gathered) -> Resul
     }
     out.shapes
         .extend(file.shapes.into_iter().map(|s| (source.clone(), s)));
+    out.models
+        .extend(file.models.into_iter().map(|m| (source.clone(), m)));
     stack.pop();
     Ok(())
 }
@@ -373,17 +402,63 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
                 .expect("entity was just spawned");
         }
     }
+    let mut warnings = Vec::new();
+    for (source, model) in &gathered.models {
+        let def = model.get_ref();
+        let err = |m: String| source.error(model.span().start, format!("model: {m}"));
+        let base = source.path.parent().unwrap_or(Path::new("."));
+        let file = base.join(def.file.get_ref());
+        if !file.is_file() {
+            return Err(source.error(
+                def.file.span().start,
+                format!("model file '{}' does not exist", file.display()),
+            ));
+        }
+        let material = match &def.material {
+            None => None,
+            Some(name) => Some(*gathered.materials.get(name.get_ref()).ok_or_else(|| {
+                source.error(
+                    name.span().start,
+                    format!("unknown material '{}'", name.get_ref()),
+                )
+            })?),
+        };
+        let imported = import_model(&file, def.up)?;
+        let anchor = match def.fit {
+            None => Affine3A::IDENTITY,
+            Some(fit) => {
+                if !(fit.is_finite() && fit > 0.0) {
+                    return Err(err(format!("fit must be a positive number, got {fit}")));
+                }
+                let (lo, hi) = bounding_box(&imported.world)
+                    .ok_or_else(|| err(format!("'{}' has no geometry", file.display())))?;
+                place::fit_transform(lo, hi, fit, Vec3::ZERO)
+            }
+        };
+        let placement = placement_transform(def.position, def.rotation, def.scale).map_err(err)?;
+        place::merge_model(&mut world, imported.world, placement * anchor, material);
+        warnings.extend(imported.warnings);
+    }
     Ok(Scene {
         world,
         defaults: gathered.defaults,
+        warnings,
     })
 }
 
-/// `translate * rotate_z * rotate_y * rotate_x * scale`: rotations apply about x first.
 fn shape_transform(def: &ShapeDef) -> std::result::Result<Affine3A, String> {
-    let translate = def.translate.unwrap_or([0.0; 3]);
-    let rotate = def.rotate.unwrap_or([0.0; 3]);
-    let scale = match def.scale {
+    placement_transform(def.translate, def.rotate, def.scale)
+}
+
+/// `translate * rotate_z * rotate_y * rotate_x * scale`: rotations apply about x first.
+fn placement_transform(
+    translate: Option<[f32; 3]>,
+    rotate: Option<[f32; 3]>,
+    scale: Option<ScaleDef>,
+) -> std::result::Result<Affine3A, String> {
+    let translate = translate.unwrap_or([0.0; 3]);
+    let rotate = rotate.unwrap_or([0.0; 3]);
+    let scale = match scale {
         None => [1.0; 3],
         Some(ScaleDef::Uniform(s)) => [s; 3],
         Some(ScaleDef::PerAxis(s)) => s,

@@ -1,0 +1,485 @@
+//! glTF 2.0 import (`.gltf` with external or data-URI buffers, `.glb`): the default scene's
+//! node hierarchy becomes entities of the world, placed by `world_from_file` (which turns
+//! glTF's +Y up into wavetrace's +Z up, see [`super::UpAxis`]).
+//!
+//! Each triangle primitive becomes one entity (`Name` = its node's name) with a [`Mesh`] in
+//! node space and the node's world [`Transform`]; cameras become [`Camera`]s in world space;
+//! `KHR_lights_punctual` lights become [`PunctualLight`]s. The material mapping is the one
+//! documented in the README (mirror, glass, emitter, else Lambertian).
+
+use super::{Scene, SceneDefaults, UpAxis, check_mesh};
+use crate::error::{Error, Result};
+use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3};
+use crate::scene::{
+    AlbedoTexture, Camera, Emitter, FresnelModel, Material, Mesh, Name, PunctualLight, Transform,
+};
+use crate::texture::{Filter, Texture, Wrap};
+use gltf::khr_lights_punctual::Kind as LightKind;
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Extensions a file may list in `extensionsRequired`: those whose absence would change the
+/// image are read; the others (unlit, specular, ...) only refine what we approximate anyway.
+const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_transmission",
+    "KHR_texture_transform",
+];
+
+/// Metallic at least this and roughness at most [`MIRROR_MAX_ROUGHNESS`] make a mirror.
+const MIRROR_MIN_METALLIC: f32 = 0.99;
+/// See [`MIRROR_MIN_METALLIC`].
+const MIRROR_MAX_ROUGHNESS: f32 = 0.05;
+/// Transmission at least this makes smooth glass.
+const GLASS_MIN_TRANSMISSION: f32 = 0.5;
+
+/// How one glTF material appears in the world.
+struct ImportedMaterial {
+    material: Material,
+    emitter: Option<Emitter>,
+    texture: Option<TextureRef>,
+}
+
+/// A base-colour texture and how a primitive's UVs reach it.
+struct TextureRef {
+    texture: Arc<Texture>,
+    /// Texture coordinate set (`TEXCOORD_n`).
+    set: u32,
+    /// `KHR_texture_transform`, applied to the UVs at load time.
+    uv_transform: Option<[[f32; 3]; 2]>,
+}
+
+/// Loads a glTF file into a new world.
+pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    })?;
+    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes)
+        .map_err(|e| Error::input(path, None, format!("not a valid glTF file: {e}")))?;
+    for ext in unchecked.extensions_required() {
+        if !SUPPORTED_REQUIRED.contains(&ext) {
+            return Err(Error::input(
+                path,
+                None,
+                format!(
+                    "the file requires the extension '{ext}', which wavetrace does not support{}",
+                    if ext.contains("draco")
+                        || ext.contains("meshopt")
+                        || ext.contains("quantization")
+                    {
+                        " (export without mesh compression or quantization)"
+                    } else {
+                        ""
+                    }
+                ),
+            ));
+        }
+    }
+    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| {
+        Error::input(
+            path,
+            None,
+            match e {
+                gltf::Error::Validation(errors) => format!(
+                    "invalid glTF: {}",
+                    errors
+                        .iter()
+                        .map(|(p, e)| format!("{p}: {e}"))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                ),
+                other => format!("not a valid glTF file: {other}"),
+            },
+        )
+    })?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let gltf::Gltf { document, blob } = gltf;
+    let buffers = gltf::import_buffers(&document, Some(base), blob)
+        .map_err(|e| Error::input(path, None, format!("cannot load buffer data: {e}")))?;
+
+    let mut warnings = Vec::new();
+    let textures = import_textures(&document, base, &buffers, path)?;
+    let materials: Vec<ImportedMaterial> = document
+        .materials()
+        .map(|m| import_material(&m, &textures, &mut warnings))
+        .collect();
+    let default_material = ImportedMaterial {
+        material: Material::Lambertian {
+            albedo: Rgb::ONE, // glTF's default material: base colour 1, metallic 1, roughness 1
+        },
+        emitter: None,
+        texture: None,
+    };
+
+    let scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| Error::input(path, None, "the file has no scene"))?;
+    let mut world = hecs::World::new();
+    let world_from_file = up.world_from_file();
+    let mut stack: Vec<(gltf::Node, Affine3A, usize)> = scene
+        .nodes()
+        .map(|n| (n, world_from_file, 0usize))
+        .collect();
+    stack.reverse(); // visit in document order
+    let node_count = document.nodes().len();
+    while let Some((node, parent, depth)) = stack.pop() {
+        if depth > node_count {
+            return Err(Error::input(
+                path,
+                Some(node_location(&node)),
+                "the node hierarchy has a cycle",
+            ));
+        }
+        let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+        let world_from_node = parent * local;
+        if !world_from_node.is_finite() {
+            return Err(Error::input(
+                path,
+                Some(node_location(&node)),
+                "the transform is not finite",
+            ));
+        }
+        let name = node
+            .name()
+            .map(str::to_string)
+            .or_else(|| node.mesh().and_then(|m| m.name().map(str::to_string)))
+            .unwrap_or_else(|| format!("node {}", node.index()));
+        if let Some(mesh) = node.mesh() {
+            for primitive in mesh.primitives() {
+                let imported = primitive
+                    .material()
+                    .index()
+                    .map_or(&default_material, |i| &materials[i]);
+                let mesh_data = read_primitive(&primitive, &mesh, imported, &buffers, path)?;
+                let entity = world.spawn((
+                    Name(name.clone()),
+                    Transform(world_from_node),
+                    mesh_data,
+                    imported.material,
+                ));
+                if let Some(e) = imported.emitter {
+                    world.insert_one(entity, e).expect("just spawned");
+                }
+                if let Some(t) = &imported.texture {
+                    world
+                        .insert_one(entity, AlbedoTexture(t.texture.clone()))
+                        .expect("just spawned");
+                }
+            }
+        }
+        if let Some(camera) = node.camera() {
+            match camera.projection() {
+                gltf::camera::Projection::Perspective(p) => {
+                    world.spawn((Name(name.clone()), camera_of(&world_from_node, &p)));
+                }
+                gltf::camera::Projection::Orthographic(_) => warnings.push(format!(
+                    "camera '{name}': orthographic cameras are not supported; skipped"
+                )),
+            }
+        }
+        if let Some(light) = node.light() {
+            let colour = Rgb::from(light.color()) * light.intensity();
+            let punctual = match light.kind() {
+                LightKind::Point => PunctualLight::Point { intensity: colour },
+                LightKind::Directional => PunctualLight::Directional { irradiance: colour },
+                LightKind::Spot {
+                    inner_cone_angle,
+                    outer_cone_angle,
+                } => PunctualLight::Spot {
+                    intensity: colour,
+                    inner_cone: inner_cone_angle,
+                    outer_cone: outer_cone_angle,
+                },
+            };
+            if !colour.is_finite() || colour.min_element() < 0.0 {
+                return Err(Error::input(
+                    path,
+                    Some(node_location(&node)),
+                    "light colour and intensity must be finite and non-negative",
+                ));
+            }
+            world.spawn((Name(name.clone()), Transform(world_from_node), punctual));
+        }
+        let children: Vec<_> = node.children().collect();
+        for child in children.into_iter().rev() {
+            stack.push((child, world_from_node, depth + 1));
+        }
+    }
+    Ok(Scene {
+        world,
+        defaults: SceneDefaults::default(),
+        warnings,
+    })
+}
+
+fn node_location(node: &gltf::Node) -> String {
+    match node.name() {
+        Some(n) => format!("node '{n}' (index {})", node.index()),
+        None => format!("node {}", node.index()),
+    }
+}
+
+/// A glTF camera (looking down its node's -Z with +Y up) in world space.
+fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camera {
+    let eye = world_from_node.transform_point3(Vec3::ZERO);
+    let forward = world_from_node
+        .transform_vector3(Vec3::NEG_Z)
+        .normalize_or(Vec3::NEG_Z);
+    let up_hint = world_from_node.transform_vector3(Vec3::Y);
+    let right = forward.cross(up_hint).normalize_or(Vec3::X);
+    Camera {
+        eye,
+        forward,
+        up: right.cross(forward),
+        vfov: p.yfov(),
+        aspect_ratio: p.aspect_ratio(),
+    }
+}
+
+/// Decodes the images used as base-colour textures (sRGB to linear), with their samplers.
+/// Indexed like `document.textures()`; `None` where a texture is unused or unreadable.
+fn import_textures(
+    document: &gltf::Document,
+    base: &Path,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+) -> Result<Vec<Option<Arc<Texture>>>> {
+    let used: Vec<usize> = document
+        .materials()
+        .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
+        .map(|info| info.texture().index())
+        .collect();
+    let mut out = vec![None; document.textures().len()];
+    if used.is_empty() {
+        return Ok(out);
+    }
+    let mut images: HashMap<usize, gltf::image::Data> = HashMap::new();
+    for texture in document.textures() {
+        if !used.contains(&texture.index()) {
+            continue;
+        }
+        let image = texture.source();
+        if !images.contains_key(&image.index()) {
+            let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
+                .map_err(|e| {
+                    Error::input(
+                        path,
+                        Some(format!("image {}", image.index())),
+                        format!("cannot decode: {e}"),
+                    )
+                })?;
+            images.insert(image.index(), data);
+        }
+        let data = &images[&image.index()];
+        use gltf::image::Format as F;
+        let (w, h) = (data.width, data.height);
+        let decoded = match data.format {
+            F::R8 => Texture::from_srgb8(w, h, 1, &data.pixels),
+            F::R8G8 => Texture::from_srgb8(w, h, 2, &data.pixels),
+            F::R8G8B8 => Texture::from_srgb8(w, h, 3, &data.pixels),
+            F::R8G8B8A8 => Texture::from_srgb8(w, h, 4, &data.pixels),
+            F::R16 => Texture::from_srgb16(w, h, 1, &data.pixels),
+            F::R16G16 => Texture::from_srgb16(w, h, 2, &data.pixels),
+            F::R16G16B16 => Texture::from_srgb16(w, h, 3, &data.pixels),
+            F::R16G16B16A16 => Texture::from_srgb16(w, h, 4, &data.pixels),
+            F::R32G32B32FLOAT | F::R32G32B32A32FLOAT => {
+                let channels = if data.format == F::R32G32B32FLOAT {
+                    3
+                } else {
+                    4
+                };
+                let floats: Vec<f32> = data
+                    .pixels
+                    .chunks_exact(4)
+                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect();
+                Texture::new(
+                    w,
+                    h,
+                    floats
+                        .chunks_exact(channels)
+                        .map(|t| Rgb::new(t[0], t[1], t[2]))
+                        .collect(),
+                )
+            }
+        };
+        let mut decoded = decoded.ok_or_else(|| {
+            Error::input(
+                path,
+                Some(format!("image {}", image.index())),
+                "the decoded image has no texels or an inconsistent size",
+            )
+        })?;
+        let sampler = texture.sampler();
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        decoded.wrap = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
+        decoded.filter = match sampler.mag_filter() {
+            Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
+            _ => Filter::Linear,
+        };
+        out[texture.index()] = Some(Arc::new(decoded));
+    }
+    Ok(out)
+}
+
+/// The README's mapping from glTF PBR materials to wavetrace's.
+fn import_material(
+    m: &gltf::Material,
+    textures: &[Option<Arc<Texture>>],
+    warnings: &mut Vec<String>,
+) -> ImportedMaterial {
+    let name = m.name().unwrap_or("unnamed");
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _alpha] = pbr.base_color_factor();
+    let base = Rgb::new(r, g, b).clamp(Rgb::ZERO, Rgb::ONE);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let material = if transmission >= GLASS_MIN_TRANSMISSION {
+        Material::Dielectric {
+            ior: m.ior().filter(|i| *i > 0.0).unwrap_or(1.5),
+            fresnel: FresnelModel::Exact,
+            tint: base,
+        }
+    } else if pbr.metallic_factor() >= MIRROR_MIN_METALLIC
+        && pbr.roughness_factor() <= MIRROR_MAX_ROUGHNESS
+    {
+        Material::Mirror { tint: base }
+    } else {
+        Material::Lambertian { albedo: base }
+    };
+    let strength = m.emissive_strength().unwrap_or(1.0);
+    let radiance = Rgb::from(m.emissive_factor()) * strength;
+    let emitter = (radiance.max_element() > 0.0).then_some(Emitter {
+        radiance,
+        two_sided: m.double_sided(),
+    });
+    if m.emissive_texture().is_some() {
+        warnings.push(format!(
+            "material '{name}': emissive textures are not supported; the emissive factor is used alone"
+        ));
+    }
+    let texture = pbr.base_color_texture().and_then(|info| {
+        let texture = textures[info.texture().index()].clone()?;
+        let transform = info.texture_transform();
+        let set = transform
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        let uv_transform = transform.map(|t| {
+            // KHR_texture_transform: uv' = T * R * S * uv.
+            let ([ox, oy], angle, [sx, sy]) = (t.offset(), t.rotation(), t.scale());
+            let (s, c) = angle.sin_cos();
+            [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]]
+        });
+        Some(TextureRef {
+            texture,
+            set,
+            uv_transform,
+        })
+    });
+    ImportedMaterial {
+        material,
+        emitter,
+        texture,
+    }
+}
+
+/// Reads one primitive's triangles into a [`Mesh`] in node space.
+fn read_primitive(
+    primitive: &gltf::Primitive,
+    mesh: &gltf::Mesh,
+    material: &ImportedMaterial,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+) -> Result<Mesh> {
+    let mesh_name = match mesh.name() {
+        Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
+        None => format!("mesh {}", mesh.index()),
+    };
+    let at = || Some(format!("{mesh_name}, primitive {}", primitive.index()));
+    if primitive.mode() != Mode::Triangles {
+        return Err(Error::input(
+            path,
+            at(),
+            format!(
+                "primitive mode {:?} is not supported (only triangles are)",
+                primitive.mode()
+            ),
+        ));
+    }
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or_else(|| {
+            Error::input(
+                path,
+                at(),
+                "POSITION is missing, or its accessor lies outside its buffer",
+            )
+        })?
+        .map(Vec3::from)
+        .collect();
+    let n = positions.len();
+    let normals: Vec<Vec3> = reader
+        .read_normals()
+        .map(|it| it.map(Vec3::from).collect())
+        .unwrap_or_default();
+    let mut uvs: Vec<Vec2> = match &material.texture {
+        Some(t) => reader
+            .read_tex_coords(t.set)
+            .map(|it| it.into_f32().map(Vec2::from).collect())
+            .unwrap_or_default(),
+        None => Vec::new(),
+    };
+    if let Some([row0, row1]) = material.texture.as_ref().and_then(|t| t.uv_transform) {
+        for uv in &mut uvs {
+            *uv = Vec2::new(
+                row0[0] * uv.x + row0[1] * uv.y + row0[2],
+                row1[0] * uv.x + row1[1] * uv.y + row1[2],
+            );
+        }
+    }
+    let flat: Vec<u32> = match (primitive.indices(), reader.read_indices()) {
+        (_, Some(indices)) => indices.into_u32().collect(),
+        (None, None) => (0..n as u32).collect(), // non-indexed: consecutive triples
+        (Some(_), None) => {
+            return Err(Error::input(
+                path,
+                at(),
+                "the indices accessor lies outside its buffer",
+            ));
+        }
+    };
+    if flat.len() % 3 != 0 {
+        return Err(Error::input(
+            path,
+            at(),
+            format!(
+                "{} indices do not make whole triangles (not a multiple of 3)",
+                flat.len()
+            ),
+        ));
+    }
+    let mesh = Mesh {
+        positions,
+        normals: if normals.len() == n {
+            normals
+        } else {
+            Vec::new()
+        },
+        uvs: if uvs.len() == n { uvs } else { Vec::new() },
+        indices: flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    };
+    check_mesh(path, &mesh_name, &mesh)?;
+    Ok(mesh)
+}

@@ -1,0 +1,489 @@
+//! Wavefront OBJ/MTL import through tobj: each object/group/`usemtl` run becomes one entity
+//! with its own [`Mesh`] and material, placed by the file's up-axis conversion.
+//!
+//! Polygons are triangulated here by ear clipping in the polygon's plane, so concave faces
+//! come out right (tobj's own triangulation is a fan, correct only for convex faces). The MTL
+//! mapping is documented in the README: `Kd`/`map_Kd` -> Lambertian, `Ke` -> one-sided
+//! emitter, `illum 3` or a mirror-like `Ks` with high `Ns` -> mirror, `illum 4/6/7` or
+//! `d`/`Tr` transparency -> glass of index `Ni`.
+
+use super::{Scene, SceneDefaults, UpAxis, check_mesh};
+use crate::error::{Error, Result};
+use crate::math::{Rgb, Vec2, Vec3};
+use crate::scene::{AlbedoTexture, Emitter, FresnelModel, Material, Mesh, Name, Transform};
+use crate::texture::Texture;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Albedo of faces without a usable material (Blender's default grey).
+const DEFAULT_GREY: f32 = 0.8;
+/// `Ks` at least this (every channel) and `Ns` at least [`MIRROR_MIN_NS`] read as a mirror.
+const MIRROR_MIN_KS: f32 = 0.9;
+/// See [`MIRROR_MIN_KS`] (Blender writes `Ns` 1000 for roughness 0).
+const MIRROR_MIN_NS: f32 = 900.0;
+
+/// Loads an OBJ file (and its MTL libraries) into a new world.
+pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
+    let text = super::read_text(path)?;
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let options = tobj::LoadOptions {
+        triangulate: false,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let mut mtl_names: Vec<PathBuf> = Vec::new();
+    let mtl_names_cell = std::cell::RefCell::new(&mut mtl_names);
+    let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
+        let full = dir.join(mtl);
+        mtl_names_cell.borrow_mut().push(full.clone());
+        tobj::load_mtl(&full)
+    })
+    .map_err(|e| {
+        Error::input(
+            path,
+            first_failing_line(&text, &options).map(|l| format!("line {l}")),
+            format!("cannot parse OBJ: {e}"),
+        )
+    })?;
+    let mut warnings = Vec::new();
+    let materials = match materials {
+        Ok(m) => m,
+        Err(e) => {
+            let names: Vec<String> = mtl_names.iter().map(|p| p.display().to_string()).collect();
+            warnings.push(format!(
+                "{}: cannot read material library {} ({e}); using a default grey material",
+                path.display(),
+                names.join(", ")
+            ));
+            Vec::new()
+        }
+    };
+
+    // Line number (1-based) of every face, in file order, to name faces in messages.
+    let face_lines: Vec<usize> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| {
+            let l = l.trim_start();
+            l.starts_with("f ") || l.starts_with("f\t")
+        })
+        .map(|(i, _)| i + 1)
+        .collect();
+
+    let mut texture_cache: HashMap<PathBuf, Option<Arc<Texture>>> = HashMap::new();
+    let imported: Vec<(Material, Option<Emitter>, Option<Arc<Texture>>)> = materials
+        .iter()
+        .map(|m| import_material(m, &dir, &mut texture_cache, &mut warnings))
+        .collect();
+    let default = (
+        Material::Lambertian {
+            albedo: Rgb::splat(DEFAULT_GREY),
+        },
+        None,
+        None,
+    );
+
+    let mut world = hecs::World::new();
+    let transform = Transform(up.world_from_file());
+    let mut face_counter = 0usize;
+    for model in &models {
+        let m = &model.mesh;
+        let name = if model.name.is_empty() {
+            "unnamed".to_string()
+        } else {
+            model.name.clone()
+        };
+        let positions: Vec<Vec3> = m
+            .positions
+            .chunks_exact(3)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
+        let n = positions.len();
+        let normals: Vec<Vec3> = m
+            .normals
+            .chunks_exact(3)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
+        // OBJ's v runs up the image; wavetrace's (glTF's) runs down.
+        let uvs: Vec<Vec2> = m
+            .texcoords
+            .chunks_exact(2)
+            .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+            .collect();
+        let arities: Vec<u32> = if m.face_arities.is_empty() {
+            vec![3; m.indices.len() / 3]
+        } else {
+            m.face_arities.clone()
+        };
+        let mut indices = Vec::with_capacity(m.indices.len());
+        let mut start = 0usize;
+        for &arity in &arities {
+            let polygon = &m.indices[start..start + arity as usize];
+            start += arity as usize;
+            let line = face_lines.get(face_counter).copied();
+            face_counter += 1;
+            if let Some(&bad) = polygon.iter().find(|&&i| i as usize >= n) {
+                return Err(face_error(
+                    path,
+                    line,
+                    format!("vertex index {bad} out of range"),
+                ));
+            }
+            triangulate_polygon(&positions, polygon, &mut indices)
+                .map_err(|msg| face_error(path, line, msg))?;
+        }
+        let (material, emitter, texture) = match m.material_id {
+            Some(id) if id < imported.len() => imported[id].clone(),
+            Some(_) | None => {
+                if !materials.is_empty() {
+                    warnings.push(format!(
+                        "{}: object '{name}' has no known material; using a default grey",
+                        path.display()
+                    ));
+                }
+                default.clone()
+            }
+        };
+        let mesh = Mesh {
+            positions,
+            normals: if normals.len() == n {
+                normals
+            } else {
+                Vec::new()
+            },
+            uvs: if uvs.len() == n { uvs } else { Vec::new() },
+            indices,
+        };
+        check_mesh(path, &format!("object '{name}'"), &mesh)?;
+        let entity = world.spawn((Name(name), transform, mesh, material));
+        if let Some(e) = emitter {
+            world.insert_one(entity, e).expect("just spawned");
+        }
+        if let Some(t) = texture {
+            world
+                .insert_one(entity, AlbedoTexture(t))
+                .expect("just spawned");
+        }
+    }
+    Ok(Scene {
+        world,
+        defaults: SceneDefaults::default(),
+        warnings,
+    })
+}
+
+/// The line at which tobj's parse first fails (tobj reports no position): the shortest
+/// failing prefix of the file, found by bisection.
+fn first_failing_line(text: &str, options: &tobj::LoadOptions) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    let fails = |k: usize| {
+        let prefix = lines[..k].join("\n");
+        tobj::load_obj_buf(&mut prefix.as_bytes(), options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .is_err()
+    };
+    if !fails(lines.len()) {
+        return None;
+    }
+    let (mut good, mut bad) = (0, lines.len()); // parsing `good` lines works, `bad` fails
+    while bad - good > 1 {
+        let mid = (good + bad) / 2;
+        if fails(mid) { bad = mid } else { good = mid }
+    }
+    Some(bad)
+}
+
+fn face_error(path: &Path, line: Option<usize>, message: String) -> Error {
+    Error::input(
+        path,
+        line.map(|l| format!("line {l}")),
+        format!("face: {message}"),
+    )
+}
+
+/// The README's MTL mapping.
+fn import_material(
+    m: &tobj::Material,
+    dir: &Path,
+    cache: &mut HashMap<PathBuf, Option<Arc<Texture>>>,
+    warnings: &mut Vec<String>,
+) -> (Material, Option<Emitter>, Option<Arc<Texture>>) {
+    let rgb = |c: Option<[f32; 3]>| c.map(Rgb::from);
+    let kd = rgb(m.diffuse).unwrap_or(Rgb::splat(DEFAULT_GREY));
+    let ks = rgb(m.specular).unwrap_or(Rgb::ZERO);
+    let ns = m.shininess.unwrap_or(0.0);
+    let illum = m
+        .illumination_model
+        .unwrap_or(if ks == Rgb::ZERO { 1 } else { 2 });
+    let tr = m
+        .unknown_param
+        .get("Tr")
+        .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok());
+    let transparency = match (m.dissolve, tr) {
+        (Some(d), _) => 1.0 - d,
+        (None, Some(tr)) => tr,
+        (None, None) => 0.0,
+    };
+    let clamped = |c: Rgb, what: &str, warnings: &mut Vec<String>| {
+        if c.min_element() < 0.0 || c.max_element() > 1.0 {
+            warnings.push(format!(
+                "material '{}': {what} {c} clamped to [0, 1]",
+                m.name
+            ));
+        }
+        c.clamp(Rgb::ZERO, Rgb::ONE)
+    };
+    let material = if matches!(illum, 4 | 6 | 7) || transparency > 0.0 {
+        Material::Dielectric {
+            ior: m.optical_density.filter(|&n| n > 0.0).unwrap_or(1.5),
+            fresnel: FresnelModel::Exact,
+            tint: Rgb::ONE,
+        }
+    } else if illum == 3 || (ks.min_element() >= MIRROR_MIN_KS && ns >= MIRROR_MIN_NS) {
+        let tint = if ks.max_element() > 0.0 { ks } else { Rgb::ONE };
+        Material::Mirror {
+            tint: clamped(tint, "Ks", warnings),
+        }
+    } else {
+        Material::Lambertian {
+            albedo: clamped(kd, "Kd", warnings),
+        }
+    };
+    let emitter = rgb(m.emissive)
+        .filter(|ke| ke.max_element() > 0.0)
+        .map(|ke| Emitter {
+            radiance: ke.max(Rgb::ZERO),
+            two_sided: false,
+        });
+    let texture = m.diffuse_texture.as_ref().and_then(|file| {
+        // map_Kd options (-s, -o, ...) are not supported: the last word is the file.
+        let file = file.split_whitespace().last().unwrap_or(file);
+        let full = dir.join(file);
+        cache
+            .entry(full.clone())
+            .or_insert_with(|| match load_texture(&full) {
+                Ok(t) => Some(Arc::new(t)),
+                Err(e) => {
+                    warnings.push(format!(
+                        "material '{}': cannot load map_Kd '{}': {e}; using Kd alone",
+                        m.name,
+                        full.display()
+                    ));
+                    None
+                }
+            })
+            .clone()
+    });
+    (material, emitter, texture)
+}
+
+/// Reads an image file as an sRGB colour texture (repeat, bilinear).
+pub(super) fn load_texture(path: &Path) -> std::result::Result<Texture, String> {
+    let image = image::open(path).map_err(|e| e.to_string())?.to_rgb8();
+    Texture::from_srgb8(image.width(), image.height(), 3, image.as_raw())
+        .ok_or_else(|| "the image is empty".to_string())
+}
+
+/// Triangulates one polygon (vertex indices into `positions`) by ear clipping in its plane,
+/// appending triangles with the polygon's winding. Degenerate (zero-area) polygons add
+/// nothing; polygons that cannot be cut into ears (self-intersecting) are refused.
+pub(crate) fn triangulate_polygon(
+    positions: &[Vec3],
+    polygon: &[u32],
+    out: &mut Vec<[u32; 3]>,
+) -> std::result::Result<(), String> {
+    match polygon.len() {
+        0..=2 => return Ok(()),
+        3 => {
+            out.push([polygon[0], polygon[1], polygon[2]]);
+            return Ok(());
+        }
+        _ => {}
+    }
+    let p = |i: u32| positions[i as usize];
+    // Newell's normal, then a 2D frame in the plane with the polygon counter-clockwise.
+    let mut normal = Vec3::ZERO;
+    for k in 0..polygon.len() {
+        let (a, b) = (p(polygon[k]), p(polygon[(k + 1) % polygon.len()]));
+        normal += Vec3::new(
+            (a.y - b.y) * (a.z + b.z),
+            (a.z - b.z) * (a.x + b.x),
+            (a.x - b.x) * (a.y + b.y),
+        );
+    }
+    let self_intersecting = || {
+        format!(
+            "the {}-sided polygon intersects itself and cannot be triangulated",
+            polygon.len()
+        )
+    };
+    let normal = if normal.length_squared() > 0.0 {
+        normal.normalize()
+    } else {
+        // Zero net area: a bow tie (refused below) or a degenerate polygon (skipped).
+        let (a, b, c) = (p(polygon[0]), p(polygon[1]), p(polygon[2]));
+        let n = (b - a).cross(c - a);
+        if !(n.length_squared() > 0.0) {
+            return Ok(());
+        }
+        n.normalize()
+    };
+    let (u_axis, v_axis) = normal.any_orthonormal_pair();
+    let flat: Vec<Vec2> = polygon
+        .iter()
+        .map(|&i| Vec2::new(p(i).dot(u_axis), p(i).dot(v_axis)))
+        .collect();
+    let cross = |a: Vec2, b: Vec2, c: Vec2| (b - a).perp_dot(c - a);
+    // Ear clipping assumes a simple polygon: refuse edges that properly cross.
+    let m = flat.len();
+    for i in 0..m {
+        for j in i + 2..m {
+            if i == 0 && j == m - 1 {
+                continue; // adjacent through the closing edge
+            }
+            let (a, b, c, d) = (flat[i], flat[(i + 1) % m], flat[j], flat[(j + 1) % m]);
+            let (d1, d2) = (cross(a, b, c), cross(a, b, d));
+            let (d3, d4) = (cross(c, d, a), cross(c, d, b));
+            if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+                return Err(self_intersecting());
+            }
+        }
+    }
+    let mut remaining: Vec<usize> = (0..polygon.len()).collect();
+    // Pass 0 takes strictly convex ears; pass 1 also collinear ones (they add zero-area
+    // triangles, which flattening skips), so chains of collinear vertices cannot block it.
+    while remaining.len() > 3 {
+        let m = remaining.len();
+        let mut clipped = false;
+        'passes: for strict in [true, false] {
+            for k in 0..m {
+                let (ia, ib, ic) = (
+                    remaining[(k + m - 1) % m],
+                    remaining[k],
+                    remaining[(k + 1) % m],
+                );
+                let (a, b, c) = (flat[ia], flat[ib], flat[ic]);
+                let turn = cross(a, b, c);
+                if (strict && turn <= 0.0) || turn < 0.0 {
+                    continue;
+                }
+                let contains_other = remaining.iter().any(|&j| {
+                    if j == ia || j == ib || j == ic {
+                        return false;
+                    }
+                    let q = flat[j];
+                    cross(a, b, q) >= 0.0
+                        && cross(b, c, q) >= 0.0
+                        && cross(c, a, q) >= 0.0
+                        && q != a
+                        && q != b
+                        && q != c
+                });
+                if turn > 0.0 && contains_other {
+                    continue;
+                }
+                out.push([polygon[ia], polygon[ib], polygon[ic]]);
+                remaining.remove(k);
+                clipped = true;
+                break 'passes;
+            }
+        }
+        if !clipped {
+            return Err(self_intersecting());
+        }
+    }
+    out.push([
+        polygon[remaining[0]],
+        polygon[remaining[1]],
+        polygon[remaining[2]],
+    ]);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn area(positions: &[Vec3], tris: &[[u32; 3]]) -> f32 {
+        tris.iter()
+            .map(|&[a, b, c]| {
+                let (a, b, c) = (
+                    positions[a as usize],
+                    positions[b as usize],
+                    positions[c as usize],
+                );
+                0.5 * (b - a).cross(c - a).z
+            })
+            .sum()
+    }
+
+    #[test]
+    fn concave_polygons_are_cut_into_ears_with_the_right_area() {
+        // An L shape (area 3) whose fan from vertex 0 would cover the notch.
+        let l = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(2.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(1.0, 2.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        ];
+        for rotation in 0..6u32 {
+            let polygon: Vec<u32> = (0..6).map(|k| (k + rotation) % 6).collect();
+            let mut tris = Vec::new();
+            triangulate_polygon(&l, &polygon, &mut tris).unwrap();
+            assert_eq!(tris.len(), 4);
+            assert!((area(&l, &tris) - 3.0).abs() < 1e-6, "rotation {rotation}");
+            for &[a, b, c] in &tris {
+                let (a, b, c) = (l[a as usize], l[b as usize], l[c as usize]);
+                assert!((b - a).cross(c - a).z >= 0.0, "winding kept");
+            }
+        }
+    }
+
+    #[test]
+    fn convex_polygons_with_collinear_vertices_triangulate() {
+        let square = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(2.0, 0.0, 1.0),
+            Vec3::new(2.0, 2.0, 1.0),
+            Vec3::new(0.0, 2.0, 1.0),
+        ];
+        let mut tris = Vec::new();
+        triangulate_polygon(&square, &[0, 1, 2, 3, 4], &mut tris).unwrap();
+        assert!((area(&square, &tris) - 4.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn self_intersecting_polygons_are_refused() {
+        // A bow tie.
+        let bow = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 2.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        ];
+        let mut tris = Vec::new();
+        let e = triangulate_polygon(&bow, &[0, 1, 2, 3], &mut tris).unwrap_err();
+        assert!(e.contains("intersects itself"), "{e}");
+        // A pentagon whose first edge crosses the third.
+        let crossed = [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(2.0, 2.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+            Vec3::new(1.0, 3.0, 0.0),
+        ];
+        assert!(triangulate_polygon(&crossed, &[0, 1, 2, 3, 4], &mut tris).is_err());
+        // Collinear points only: nothing to render, no error.
+        let line = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X, 3.0 * Vec3::X];
+        tris.clear();
+        triangulate_polygon(&line, &[0, 1, 2, 3], &mut tris).unwrap();
+        assert!(tris.is_empty());
+    }
+}

@@ -1,0 +1,208 @@
+//! Colour textures: linear RGB texels with a sampler (wrap and filter per axis), looked up
+//! by texture coordinate. Pure data and math; loaders fill them and shading reads them.
+//!
+//! Texture coordinates follow glTF: `(0, 0)` is the top-left corner of the image (the first
+//! stored row), `u` runs right and `v` down. The OBJ loader flips `v` to match.
+
+use crate::math::{Rgb, Vec2};
+
+/// What happens outside `[0, 1]` along one axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    /// Tile the image.
+    Repeat,
+    /// Repeat the edge texel.
+    ClampToEdge,
+    /// Tile, mirroring every other copy.
+    MirroredRepeat,
+}
+
+/// How texels are combined at a lookup.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filter {
+    /// The texel the point falls in.
+    Nearest,
+    /// Bilinear interpolation of the four nearest texel centres.
+    Linear,
+}
+
+/// An RGB texture in linear colour, with its sampler.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    width: u32,
+    height: u32,
+    /// Row-major texels, row 0 at the top (`v = 0`).
+    texels: Vec<Rgb>,
+    /// Wrap modes along `u` and `v`.
+    pub wrap: [Wrap; 2],
+    /// Filter used for every lookup (no mipmapping: a path tracer supersamples anyway).
+    pub filter: Filter,
+}
+
+/// sRGB-encoded 8-bit value to linear, as a table (the transfer function of IEC 61966-2-1).
+fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.04045 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Texture {
+    /// A texture from linear texels (row-major, row 0 at the top). `None` if the sizes
+    /// do not match or the image is empty.
+    pub fn new(width: u32, height: u32, texels: Vec<Rgb>) -> Option<Self> {
+        (width > 0 && height > 0 && texels.len() == width as usize * height as usize).then_some(
+            Texture {
+                width,
+                height,
+                texels,
+                wrap: [Wrap::Repeat; 2],
+                filter: Filter::Linear,
+            },
+        )
+    }
+
+    /// A texture from sRGB-encoded 8-bit data with `channels` bytes per texel (1: grey,
+    /// 2: grey + alpha, 3: RGB, 4: RGBA; alpha is ignored).
+    pub fn from_srgb8(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
+        let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
+        Self::from_encoded(width, height, channels, bytes, |b| lut[b as usize])
+    }
+
+    /// Like [`Self::from_srgb8`] for 16-bit little-endian channels.
+    pub fn from_srgb16(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
+        let values: Vec<u16> = bytes
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        Self::from_encoded(width, height, channels, &values, |v| {
+            srgb_to_linear(v as f32 / 65535.0)
+        })
+    }
+
+    fn from_encoded<T: Copy>(
+        width: u32,
+        height: u32,
+        channels: usize,
+        data: &[T],
+        decode: impl Fn(T) -> f32,
+    ) -> Option<Self> {
+        if !(1..=4).contains(&channels) || data.len() != width as usize * height as usize * channels
+        {
+            return None;
+        }
+        let texels = data
+            .chunks_exact(channels)
+            .map(|t| match channels {
+                1 | 2 => Rgb::splat(decode(t[0])),
+                _ => Rgb::new(decode(t[0]), decode(t[1]), decode(t[2])),
+            })
+            .collect();
+        Self::new(width, height, texels)
+    }
+
+    /// Width and height in texels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The filtered colour at texture coordinate `uv`.
+    #[inline]
+    pub fn lookup(&self, uv: Vec2) -> Rgb {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let x = uv.x * w as f32;
+        let y = uv.y * h as f32;
+        if !(x.is_finite() && y.is_finite()) {
+            return self.texel(0, 0);
+        }
+        match self.filter {
+            Filter::Nearest => {
+                let i = wrap_index(x.floor() as i64, w, self.wrap[0]);
+                let j = wrap_index(y.floor() as i64, h, self.wrap[1]);
+                self.texel(i, j)
+            }
+            Filter::Linear => {
+                let (xs, ys) = (x - 0.5, y - 0.5);
+                let (x0, y0) = (xs.floor(), ys.floor());
+                let (fx, fy) = (xs - x0, ys - y0);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                let i0 = wrap_index(x0, w, self.wrap[0]);
+                let i1 = wrap_index(x0 + 1, w, self.wrap[0]);
+                let j0 = wrap_index(y0, h, self.wrap[1]);
+                let j1 = wrap_index(y0 + 1, h, self.wrap[1]);
+                let top = self.texel(i0, j0) * (1.0 - fx) + self.texel(i1, j0) * fx;
+                let bottom = self.texel(i0, j1) * (1.0 - fx) + self.texel(i1, j1) * fx;
+                top * (1.0 - fy) + bottom * fy
+            }
+        }
+    }
+
+    #[inline]
+    fn texel(&self, i: usize, j: usize) -> Rgb {
+        self.texels[j * self.width as usize + i]
+    }
+}
+
+/// Texel index `i` of an axis of `n` texels, wrapped into `0..n`. Coordinates are clamped
+/// to a large range first so that the integer arithmetic cannot overflow.
+#[inline]
+fn wrap_index(i: i64, n: i64, wrap: Wrap) -> usize {
+    let i = i.clamp(-(1 << 40), 1 << 40);
+    (match wrap {
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::MirroredRepeat => {
+            let period = i.rem_euclid(2 * n);
+            if period < n {
+                period
+            } else {
+                2 * n - 1 - period
+            }
+        }
+    }) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn checker() -> Texture {
+        // 2x2: black, white / white, black.
+        let (b, w) = (Rgb::ZERO, Rgb::ONE);
+        Texture::new(2, 2, vec![b, w, w, b]).unwrap()
+    }
+
+    #[test]
+    fn nearest_lookup_wraps_as_asked() {
+        let mut t = checker();
+        t.filter = Filter::Nearest;
+        assert_eq!(t.lookup(Vec2::new(0.25, 0.25)), Rgb::ZERO);
+        assert_eq!(t.lookup(Vec2::new(0.75, 0.25)), Rgb::ONE);
+        assert_eq!(t.lookup(Vec2::new(1.25, 0.25)), Rgb::ZERO, "repeat");
+        t.wrap = [Wrap::ClampToEdge; 2];
+        assert_eq!(t.lookup(Vec2::new(1.25, 0.25)), Rgb::ONE, "clamp");
+        assert_eq!(t.lookup(Vec2::new(-3.0, 0.25)), Rgb::ZERO, "clamp");
+        t.wrap = [Wrap::MirroredRepeat; 2];
+        assert_eq!(t.lookup(Vec2::new(1.25, 0.25)), Rgb::ONE, "mirror");
+        assert_eq!(t.lookup(Vec2::new(-0.25, 0.25)), Rgb::ZERO, "mirror");
+    }
+
+    #[test]
+    fn linear_lookup_interpolates_between_texel_centres() {
+        let mut t = checker();
+        t.wrap = [Wrap::ClampToEdge; 2];
+        assert_eq!(t.lookup(Vec2::new(0.25, 0.25)), Rgb::ZERO, "texel centre");
+        let mid = t.lookup(Vec2::new(0.5, 0.25));
+        assert!((mid - Rgb::splat(0.5)).abs().max_element() < 1e-6);
+        assert!((t.lookup(Vec2::new(0.5, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn srgb_bytes_decode_to_linear() {
+        let t = Texture::from_srgb8(1, 1, 4, &[255, 188, 0, 7]).unwrap();
+        let c = t.lookup(Vec2::splat(0.5));
+        assert!((c.x - 1.0).abs() < 1e-6 && (c.y - 0.5029).abs() < 1e-3 && c.z == 0.0);
+        assert!(Texture::from_srgb8(2, 1, 3, &[0; 5]).is_none());
+    }
+}
