@@ -195,6 +195,17 @@ fn scene_cases() -> Vec<Case> {
             &["line 7, column 1", "center must be finite numbers"],
         ),
         case(
+            "huge_sphere.toml",
+            edited(10, "center = [3e38, 0, 0]").replace("radius = 1", "radius = 3e38"),
+            &["line 7, column 1", "the sphere's bounds overflow"],
+        ),
+        case(
+            "far_camera.toml",
+            edited(2, "eye = [3e38, 0, 0]")
+                .replace("look_at = [1, 0, 0]", "look_at = [-3e38, 0, 0]"),
+            &["line 1, column 1", "eye and look_at are too far apart"],
+        ),
+        case(
             "nan_albedo.toml",
             edited(
                 6,

@@ -372,10 +372,14 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
             "look_at must differ from eye and up must not be parallel to the view direction".into(),
         ));
     }
-    world.spawn((
-        Name("camera".into()),
-        Camera::look_at(eye, target, up, c.vfov.to_radians()),
-    ));
+    let camera = Camera::look_at(eye, target, up, c.vfov.to_radians());
+    // Finite but huge coordinates can still overflow on the way to a unit direction.
+    if !(camera.forward.is_finite() && camera.up.is_finite()) {
+        return Err(cam_err(
+            "eye and look_at are too far apart to give a view direction".into(),
+        ));
+    }
+    world.spawn((Name("camera".into()), camera));
 
     for (index, (source, shape)) in gathered.shapes.iter().enumerate() {
         let span = shape.span().start;
@@ -424,6 +428,11 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
                 return Err(err(format!(
                     "radius must be a positive number, got {radius}"
                 )));
+            }
+            if !(Vec3::from(center).abs().max_element() + radius).is_finite() {
+                return Err(err(
+                    "center and radius are too large: the sphere's bounds overflow".into(),
+                ));
             }
             if !def.vertices.is_empty() {
                 return Err(err(
