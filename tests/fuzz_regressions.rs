@@ -45,3 +45,47 @@ fn scene_toml_crashes_stay_fixed() {
         }
     }
 }
+
+/// The part of `data` before `marker` and, if the marker occurs, the part after it.
+fn split_at_marker<'a>(data: &'a [u8], marker: &[u8]) -> (&'a [u8], Option<&'a [u8]>) {
+    match data.windows(marker.len()).position(|w| w == marker) {
+        Some(i) => (&data[..i], Some(&data[i + marker.len()..])),
+        None => (data, None),
+    }
+}
+
+#[test]
+fn import_obj_crashes_stay_fixed() {
+    for file in inputs("import_obj") {
+        let data = std::fs::read(&file).unwrap();
+        // as in the fuzz target: an OBJ, then optionally `#MTL` and its material library
+        let (obj, mtl) = split_at_marker(&data, b"\n#MTL\n");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.obj");
+        std::fs::write(&path, obj).unwrap();
+        if let Some(mtl) = mtl {
+            std::fs::write(dir.path().join("model.mtl"), mtl).unwrap();
+        }
+        if let Ok(scene) = wavetrace::load_scene(&path) {
+            flatten_and_render(scene, &path);
+        }
+    }
+}
+
+#[test]
+fn import_gltf_crashes_stay_fixed() {
+    for file in inputs("import_gltf") {
+        let data = std::fs::read(&file).unwrap();
+        let name = if data.starts_with(b"glTF") {
+            "model.glb"
+        } else {
+            "model.gltf"
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(name);
+        std::fs::write(&path, &data).unwrap();
+        if let Ok(scene) = wavetrace::load_scene(&path) {
+            flatten_and_render(scene, &path);
+        }
+    }
+}
