@@ -70,8 +70,37 @@ pub fn line_column(text: &str, offset: usize) -> String {
     format!("line {line}, column {column}")
 }
 
+/// The candidate closest to a mistyped `word`, if one is close enough to be what was meant
+/// (at most one edit per three characters, at least one; case is ignored).
+pub fn closest_match<'a>(
+    word: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<&'a str> {
+    let word = word.to_lowercase();
+    let allowed = (word.chars().count() / 3).max(1);
+    candidates
+        .into_iter()
+        .map(|c| (strsim::damerau_levenshtein(&word, &c.to_lowercase()), c))
+        .filter(|&(distance, _)| distance <= allowed)
+        .min_by_key(|&(distance, _)| distance)
+        .map(|(_, c)| c)
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn closest_match_finds_typos_only() {
+        let keys = ["eye", "look_at", "up", "vfov"];
+        assert_eq!(super::closest_match("vfof", keys), Some("vfov"));
+        assert_eq!(super::closest_match("lookat", keys), Some("look_at"));
+        assert_eq!(super::closest_match("Eye", keys), Some("eye"));
+        assert_eq!(super::closest_match("shutter", keys), None);
+        assert_eq!(
+            super::closest_match("materails", ["materials", "shape"]),
+            Some("materials")
+        );
+    }
+
     #[test]
     fn line_column_counts_from_one() {
         let t = "a = 1\nbb = [\n  3]\n";

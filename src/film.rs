@@ -96,3 +96,22 @@ impl Image {
         Rgb::new((s[0] / n) as f32, (s[1] / n) as f32, (s[2] / n) as f32)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nan_and_infinite_samples_are_counted_and_discarded() {
+        let mut film = Film::new(2, 1);
+        film.add_sample(0, Rgb::new(1.0, 2.0, 3.0));
+        film.add_sample(0, Rgb::new(f32::NAN, 0.0, 0.0));
+        film.add_sample(0, Rgb::new(0.0, f32::INFINITY, 0.0));
+        film.add_sample(1, Rgb::new(0.0, 0.0, f32::NEG_INFINITY));
+        assert_eq!(film.rejected_samples, 3);
+        let image = film.resolve();
+        assert_eq!(image.pixels[0], Rgb::new(1.0, 2.0, 3.0));
+        assert_eq!(image.pixels[1], Rgb::ZERO);
+        assert_eq!(film.min_samples(), 0);
+    }
+}

@@ -1,13 +1,20 @@
 //! The `wavetrace` command line: parses flags into `RenderSettings`, runs the library, prints
-//! the summary, and maps errors to exit codes (1 for failures, 2 for usage errors).
+//! the summary, and maps errors to exit codes: 0 done, 1 failure (bad input, unwritable
+//! output), 2 usage error (clap), 128 + signal number when SIGINT or SIGTERM stopped the render
+//! early (the image of the samples taken so far is still written).
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use signal_hook::consts::{SIGINT, SIGTERM};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI32, Ordering};
+use std::time::{Duration, Instant};
 use wavetrace::scene::load::{LoadOptions, load_scene_with};
-use wavetrace::{Flow, RenderSettings, flatten, render, write_image};
+use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
+use wavetrace::{Flow, RenderSettings, RenderStats, flatten, render, write_image};
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -58,60 +65,128 @@ struct RenderArgs {
     output: Option<PathBuf>,
     /// Image width in pixels (default: the scene's, else 800, or from the height and the
     /// camera's aspect ratio).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     width: Option<u32>,
     /// Image height in pixels (default: the scene's, else 800, or from the width and the
     /// camera's aspect ratio).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
-    /// Samples per pixel (default: the scene's, else 16).
-    #[arg(long)]
+    /// Samples per pixel (default: the scene's, else 16; with --time: no limit but the time).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
+    /// Render for this long (e.g. 30s, 5m, 1h 30m), as many whole samples per pixel as fit,
+    /// then write the image. At least one sample per pixel is always taken.
+    #[arg(long, value_parser = parse_time_budget)]
+    time: Option<Duration>,
     /// Shadow rays per diffuse hit for next-event estimation (default: the scene's, else 1).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_SHADOW_RAYS as i64))]
     shadow_rays: Option<u32>,
     /// Seed of the random numbers; the same seed gives the same image on any thread count.
     #[arg(long, default_value_t = wavetrace::math::rng::DEFAULT_SEED)]
     seed: u64,
     /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    threads: Option<u16>,
     /// Exposure in stops applied before PNG encoding (EXR stays linear and unscaled).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
     /// Paths traced together per wavefront batch (affects speed and memory, never the image).
-    #[arg(long, default_value_t = RenderSettings::default().batch_size)]
+    #[arg(long, default_value_t = RenderSettings::default().batch_size,
+          value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     batch_size: u32,
     /// No progress bar.
     #[arg(short, long)]
     quiet: bool,
 }
 
+fn parse_time_budget(text: &str) -> std::result::Result<Duration, String> {
+    let budget = humantime::parse_duration(text).map_err(|e| e.to_string())?;
+    if budget.is_zero() {
+        return Err("the time budget must be more than zero".into());
+    }
+    Ok(budget)
+}
+
+fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
+    let stops: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(-64.0..=64.0).contains(&stops) {
+        return Err(format!("exposure must lie in -64..=64 stops, got {text}"));
+    }
+    Ok(stops)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(args),
-        Command::BenchSeed(args) => run_bench_seed(args),
+        Command::BenchSeed(args) => run_bench_seed(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::FAILURE
         }
     }
 }
 
-fn run_render(args: RenderArgs) -> Result<()> {
+/// The error and its causes on one line, leaving out a cause whose text its parent already
+/// shows (our I/O errors print the operating system's reason themselves).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.contains(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line += ": ";
+        }
+        line += &text;
+    }
+    line
+}
+
+/// Watches for SIGINT and SIGTERM. The first one is recorded in the returned cell (the render
+/// polls it after every batch); a second one ends the process at once, removing the temporary
+/// file of an image write in progress (the output file itself is only ever renamed into place).
+fn watch_stop_signals(output: &Path) -> Result<Arc<AtomicI32>> {
+    let temporary = wavetrace::output::temporary_path(output);
+    let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
+        .context("cannot install the SIGINT/SIGTERM handler")?;
+    let received = Arc::new(AtomicI32::new(0));
+    let seen = Arc::clone(&received);
+    std::thread::spawn(move || {
+        for signal in signals.forever() {
+            if seen.swap(signal, Ordering::SeqCst) != 0 {
+                eprintln!(
+                    "\nwavetrace: {} again, quitting at once",
+                    signal_name(signal)
+                );
+                let _ = std::fs::remove_file(&temporary);
+                std::process::exit(128 + signal);
+            }
+        }
+    });
+    Ok(received)
+}
+
+fn signal_name(signal: i32) -> &'static str {
+    match signal {
+        SIGINT => "SIGINT",
+        SIGTERM => "SIGTERM",
+        _ => "signal",
+    }
+}
+
+fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let output = args
         .output
         .clone()
         .unwrap_or_else(|| default_output(&args.scene));
-    // Refuse a bad output name before spending time on the render.
-    wavetrace::output::ImageFormat::from_path(&output)?;
-    let threads = args.threads.unwrap_or(0);
+    let stop_signal = watch_stop_signals(&output)?;
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
+        .num_threads(args.threads.map_or(0, usize::from))
         .build()
         .context("cannot start worker threads")?;
     pool.install(|| {
@@ -120,11 +195,18 @@ fn run_render(args: RenderArgs) -> Result<()> {
             camera: args.camera.clone(),
         };
         let scene = load_scene_with(&args.scene, &options)?;
+        // Refuse an unwritable output before spending time on the render.
+        wavetrace::output::check_writable(&output)?;
         let flat = flatten(&scene.world, &args.scene)?;
         for warning in scene.warnings.iter().chain(&flat.warnings) {
             eprintln!("warning: {warning}");
         }
         let defaults = RenderSettings::default();
+        let spp = match (args.spp, args.time) {
+            (Some(spp), _) => spp,
+            (None, Some(_)) => u32::MAX, // the time budget decides
+            (None, None) => scene.defaults.spp.unwrap_or(defaults.spp),
+        };
         let (width, height) = image_size(
             args.width.or(scene.defaults.width),
             args.height.or(scene.defaults.height),
@@ -134,7 +216,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         let settings = RenderSettings {
             width,
             height,
-            spp: args.spp.or(scene.defaults.spp).unwrap_or(defaults.spp),
+            spp,
             shadow_rays: args
                 .shadow_rays
                 .or(scene.defaults.shadow_rays)
@@ -143,15 +225,16 @@ fn run_render(args: RenderArgs) -> Result<()> {
             batch_size: args.batch_size,
             ..defaults
         };
-        if settings.shadow_rays == 0 {
-            anyhow::bail!("--shadow-rays must be at least 1");
-        }
         settings.validate()?;
 
-        let bar = if args.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(settings.pixel_count() * settings.spp as u64)
+        if let Some(signal) = received(&stop_signal) {
+            eprintln!("wavetrace: {} before rendering; no image written", signal_name(signal));
+            return Ok(ExitCode::from(128 + signal as u8));
+        }
+        let bar = match (args.quiet, args.time) {
+            (true, _) => ProgressBar::hidden(),
+            (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
+            (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
         };
         bar.set_style(
             ProgressStyle::with_template(
@@ -159,23 +242,58 @@ fn run_render(args: RenderArgs) -> Result<()> {
             )
             .expect("valid template"),
         );
-        let (film, stats) = render(&flat, &settings, |p| {
-            bar.set_position(p.samples_done);
-            Flow::Continue
-        })?;
-        bar.finish_and_clear();
-        write_image(&output, &film.resolve(), args.exposure)?;
         eprintln!(
-            "wavetrace: {}x{}, {} spp, {} shadow rays, {} threads -> {}",
+            "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
+            args.scene.display(),
             settings.width,
             settings.height,
-            settings.spp,
+            match args.time {
+                Some(t) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
+                Some(t) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
+                None => format!("{} spp", settings.spp),
+            }
+        );
+        let start = Instant::now();
+        let mut budget = args.time.map(|b| TimeBudget::new(start, b));
+        let (film, stats) = render(&flat, &settings, |p| {
+            let pass_ended = p.samples_done % settings.pixel_count() == 0;
+            match &budget {
+                Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
+                None => bar.set_position(p.samples_done),
+            }
+            if received(&stop_signal).is_some() {
+                return Flow::Stop;
+            }
+            let out_of_time = match &mut budget {
+                Some(b) => pass_ended && !b.another_pass_fits(),
+                None => false,
+            };
+            if out_of_time { Flow::Stop } else { Flow::Continue }
+        })?;
+        bar.finish_and_clear();
+
+        write_image(&output, &film.resolve(), args.exposure)?;
+        eprintln!(
+            "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
+            settings.width,
+            settings.height,
+            samples_held(&stats, settings.pixel_count()),
             settings.shadow_rays,
             rayon::current_num_threads(),
             output.display()
         );
         eprintln!("{}", stats.summary());
-        Ok(())
+        Ok(match received(&stop_signal) {
+            Some(signal) if stats.interrupted => {
+                eprintln!(
+                    "wavetrace: stopped early by {}; the image holds the samples finished so far ({})",
+                    signal_name(signal),
+                    samples_held(&stats, settings.pixel_count())
+                );
+                ExitCode::from(128 + signal as u8)
+            }
+            _ => ExitCode::SUCCESS,
+        })
     })
 }
 
@@ -266,6 +384,63 @@ fn image_size(
         (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
         (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
         (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
+    }
+}
+
+/// The signal received so far, if any.
+fn received(stop_signal: &AtomicI32) -> Option<i32> {
+    match stop_signal.load(Ordering::SeqCst) {
+        0 => None,
+        signal => Some(signal),
+    }
+}
+
+/// "16 spp", or for a render stopped inside a pass "3-4 spp (4 in 1200 of 6400 pixels)":
+/// the film averages each pixel over its own sample count, so every pixel is an unbiased
+/// estimate, but the pixels of the unfinished pass hold one sample more.
+fn samples_held(stats: &RenderStats, pixel_count: u64) -> String {
+    let extra = stats.samples % pixel_count;
+    if extra == 0 {
+        format!("{} spp", stats.complete_spp)
+    } else {
+        format!(
+            "{}-{} spp ({} in {extra} of {pixel_count} pixels)",
+            stats.complete_spp,
+            stats.complete_spp + 1,
+            stats.complete_spp + 1
+        )
+    }
+}
+
+/// `--time`: passes (one sample per pixel each) go on while the next one is expected to end
+/// within the budget, judged by the slowest pass so far. The first pass is always taken.
+struct TimeBudget {
+    start: Instant,
+    length: Duration,
+    last_pass_end: Instant,
+    slowest_pass: Duration,
+}
+
+impl TimeBudget {
+    fn new(start: Instant, length: Duration) -> Self {
+        TimeBudget {
+            start,
+            length,
+            last_pass_end: start,
+            slowest_pass: Duration::ZERO,
+        }
+    }
+
+    fn length_ms(&self) -> u128 {
+        self.length.as_millis()
+    }
+
+    /// Called whenever a pass has just ended.
+    fn another_pass_fits(&mut self) -> bool {
+        let now = Instant::now();
+        self.slowest_pass = self.slowest_pass.max(now - self.last_pass_end);
+        self.last_pass_end = now;
+        now + self.slowest_pass <= self.start + self.length
     }
 }
 

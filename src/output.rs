@@ -4,6 +4,9 @@
 
 use crate::error::{Error, Result};
 use crate::film::Image;
+use image::ImageEncoder;
+use std::fs::File;
+use std::io::{BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
 
 /// Output formats.
@@ -48,26 +51,82 @@ pub fn linear_to_srgb(x: f32) -> f32 {
 /// Writes `image` to `path`; `exposure` (in stops) applies to PNG only.
 pub fn write_image(path: &Path, image: &Image, exposure: f32) -> Result<()> {
     let format = ImageFormat::from_path(path)?;
+    write_atomically(path, |file| match format {
+        ImageFormat::Png => encode_png(file, path, image, exposure),
+        ImageFormat::Exr => encode_exr(file, path, image),
+    })
+}
+
+/// Checks, before a long render, that `path` can be written: a known extension, an existing
+/// directory, and permission to create files in it (a temporary file is made and removed).
+pub fn check_writable(path: &Path) -> Result<()> {
+    ImageFormat::from_path(path)?;
+    if path.is_dir() {
+        return Err(Error::input(path, None, "is a directory, not a file"));
+    }
+    let directory = parent_directory(path);
+    if !directory.is_dir() {
+        let problem = if directory.exists() {
+            "is not a directory"
+        } else {
+            "does not exist"
+        };
+        return Err(Error::input(
+            path,
+            None,
+            format!("output directory '{}' {problem}", directory.display()),
+        ));
+    }
+    let probe = temporary_path(path);
+    std::fs::File::create(&probe).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot write",
+        source,
+    })?;
+    std::fs::remove_file(&probe).map_err(|source| Error::Io {
+        path: probe.clone(),
+        action: "cannot remove",
+        source,
+    })
+}
+
+/// Writes `path` all at once: `encode` writes into a temporary file beside it, which is
+/// flushed to disk and then renamed over `path`. On any failure (including a full disk) the
+/// temporary file is removed and whatever was at `path` before is left untouched.
+pub fn write_atomically(
+    path: &Path,
+    encode: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
     let temporary = temporary_path(path);
-    let written = match format {
-        ImageFormat::Png => write_png(&temporary, image, exposure),
-        ImageFormat::Exr => write_exr(&temporary, image),
+    let io_error = |source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot write",
+        source,
     };
-    let result = written.and_then(|_| {
-        std::fs::rename(&temporary, path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            action: "cannot write",
-            source,
-        })
-    });
+    let file = File::create(&temporary).map_err(io_error)?;
+    let mut writer = BufWriter::new(file);
+    let written = encode(&mut writer)
+        .and_then(|()| writer.flush().map_err(io_error))
+        .and_then(|()| writer.get_ref().sync_all().map_err(io_error));
+    drop(writer);
+    let result = written.and_then(|()| std::fs::rename(&temporary, path).map_err(io_error));
     if result.is_err() {
         let _ = std::fs::remove_file(&temporary);
     }
-    result.map_err(|e| retarget(e, &temporary, path))
+    result
 }
 
-/// `.NAME.tmp-PID` beside the target, so the rename stays within one file system.
-fn temporary_path(path: &Path) -> PathBuf {
+/// The directory a file is in (`.` for a bare file name).
+fn parent_directory(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// `.NAME.tmp-PID` beside the target, so the rename stays within one file system. Public so
+/// that a process quitting in a hurry (a second Ctrl-C) can remove it.
+pub fn temporary_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -75,27 +134,8 @@ fn temporary_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
-/// Errors about the temporary file are reported against the file the user named.
-fn retarget(e: Error, temporary: &Path, target: &Path) -> Error {
-    match e {
-        Error::Io {
-            path,
-            action,
-            source,
-        } if path == temporary => Error::Io {
-            path: target.to_path_buf(),
-            action,
-            source,
-        },
-        Error::Encode { path, message } if path == temporary => Error::Encode {
-            path: target.to_path_buf(),
-            message,
-        },
-        other => other,
-    }
-}
-
-fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
+/// Encodes an 8-bit sRGB PNG into `out`; `path` names the file in errors.
+fn encode_png(out: &mut impl Write, path: &Path, image: &Image, exposure: f32) -> Result<()> {
     let scale = exposure.exp2();
     let bytes: Vec<u8> = image
         .pixels
@@ -110,61 +150,48 @@ fn write_png(path: &Path, image: &Image, exposure: f32) -> Result<()> {
                 .round() as u8
         })
         .collect();
-    let buffer = image::RgbImage::from_raw(image.width, image.height, bytes)
-        .expect("buffer size matches the image");
-    let file = std::fs::File::create(path).map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        action: "cannot write",
-        source,
-    })?;
-    let mut writer = std::io::BufWriter::new(file);
-    buffer
-        .write_to(&mut writer, image::ImageFormat::Png)
-        .map_err(|e| encode_error(path, e))?;
-    use std::io::Write;
-    writer.flush().map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        action: "cannot write",
-        source,
-    })?;
-    writer.get_ref().sync_all().map_err(|source| Error::Io {
-        path: path.to_path_buf(),
-        action: "cannot write",
-        source,
-    })
+    image::codecs::png::PngEncoder::new(out)
+        .write_image(
+            &bytes,
+            image.width,
+            image.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| match e {
+            image::ImageError::IoError(source) => Error::Io {
+                path: path.to_path_buf(),
+                action: "cannot write",
+                source,
+            },
+            other => Error::Encode {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
+        })
 }
 
-fn encode_error(path: &Path, e: image::ImageError) -> Error {
-    match e {
-        image::ImageError::IoError(source) => Error::Io {
-            path: path.to_path_buf(),
-            action: "cannot write",
-            source,
-        },
-        other => Error::Encode {
-            path: path.to_path_buf(),
-            message: other.to_string(),
-        },
-    }
-}
-
-fn write_exr(path: &Path, image: &Image) -> Result<()> {
+/// Encodes a linear float RGB OpenEXR into `out`; `path` names the file in errors.
+fn encode_exr(out: &mut (impl Write + Seek), path: &Path, image: &Image) -> Result<()> {
+    use exr::prelude::{Image as ExrImage, SpecificChannels, WritableImage};
     let w = image.width as usize;
-    exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
-        let p = image.pixels[y * w + x];
+    let channels = SpecificChannels::rgb(|pos: exr::math::Vec2<usize>| {
+        let p = image.pixels[pos.y() * w + pos.x()];
         (p.x, p.y, p.z)
-    })
-    .map_err(|e| match e {
-        exr::error::Error::Io(source) => Error::Io {
-            path: path.to_path_buf(),
-            action: "cannot write",
-            source,
-        },
-        other => Error::Encode {
-            path: path.to_path_buf(),
-            message: other.to_string(),
-        },
-    })
+    });
+    ExrImage::from_channels((w, image.height as usize), channels)
+        .write()
+        .to_buffered(out)
+        .map_err(|e| match e {
+            exr::error::Error::Io(source) => Error::Io {
+                path: path.to_path_buf(),
+                action: "cannot write",
+                source,
+            },
+            other => Error::Encode {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
+        })
 }
 
 /// Reads a linear RGB OpenEXR file (used by tests and comparisons).
@@ -194,6 +221,110 @@ pub fn read_exr(path: &Path) -> Result<Image> {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use crate::math::Rgb;
+
+    /// Stands for a full disk: accepts `room` bytes, then fails every write with ENOSPC.
+    struct DiskFull<W> {
+        inner: W,
+        room: usize,
+    }
+
+    impl<W: Write> Write for DiskFull<W> {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if self.room == 0 {
+                return Err(std::io::Error::from_raw_os_error(28)); // ENOSPC
+            }
+            let n = buf.len().min(self.room);
+            self.room -= n;
+            self.inner.write(&buf[..n])
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            self.inner.flush()
+        }
+    }
+
+    impl<W: Seek> Seek for DiskFull<W> {
+        fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+            self.inner.seek(pos)
+        }
+    }
+
+    fn noise_image() -> Image {
+        // Varied pixels so that the encoded file is larger than the room on the "disk".
+        let pixels = (0..64 * 64)
+            .map(|i| Rgb::new((i % 7) as f32 / 7.0, (i % 13) as f32 / 13.0, (i % 5) as f32))
+            .collect();
+        Image {
+            width: 64,
+            height: 64,
+            pixels,
+        }
+    }
+
+    fn directory_listing(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn full_disk_keeps_the_old_image_and_leaves_no_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = noise_image();
+        for name in ["old.png", "old.exr"] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, b"the previous image").unwrap();
+            let err = write_atomically(&path, |file| {
+                let mut full = DiskFull {
+                    inner: file,
+                    room: 1000,
+                };
+                match ImageFormat::from_path(&path).unwrap() {
+                    ImageFormat::Png => encode_png(&mut full, &path, &image, 0.0),
+                    ImageFormat::Exr => encode_exr(&mut full, &path, &image),
+                }
+            })
+            .unwrap_err();
+            let text = err.to_string();
+            assert!(text.contains(name), "{text}");
+            assert!(text.contains("No space left on device"), "{text}");
+            assert_eq!(std::fs::read(&path).unwrap(), b"the previous image");
+        }
+        assert_eq!(directory_listing(dir.path()), ["old.exr", "old.png"]);
+    }
+
+    #[test]
+    fn successful_write_replaces_the_image_and_leaves_no_temporary_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = noise_image();
+        let exr = dir.path().join("new.exr");
+        std::fs::write(&exr, b"the previous image").unwrap();
+        write_image(&exr, &image, 0.0).unwrap();
+        assert_eq!(read_exr(&exr).unwrap(), image);
+        write_image(&dir.path().join("new.png"), &image, 0.0).unwrap();
+        assert_eq!(directory_listing(dir.path()), ["new.exr", "new.png"]);
+    }
+
+    #[test]
+    fn unwritable_outputs_are_refused_before_rendering() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("no/such/dir/out.png");
+        let err = check_writable(&missing).unwrap_err().to_string();
+        assert!(err.contains("does not exist"), "{err}");
+        let err = check_writable(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("unknown output extension"), "{err}");
+        let as_dir = dir.path().join("d.png");
+        std::fs::create_dir(&as_dir).unwrap();
+        let err = check_writable(&as_dir).unwrap_err().to_string();
+        assert!(err.contains("is a directory"), "{err}");
+        check_writable(&dir.path().join("fine.png")).unwrap();
+        assert_eq!(directory_listing(dir.path()), ["d.png"]);
+    }
+
     #[test]
     fn srgb_curve_known_values() {
         assert_eq!(super::linear_to_srgb(0.0), 0.0);

@@ -7,6 +7,8 @@ use crate::math::rng::DEFAULT_SEED;
 pub const MAX_IMAGE_SIDE: u32 = 32_768;
 /// Largest accepted number of pixels (the film needs 28 bytes per pixel).
 pub const MAX_PIXELS: u64 = 1 << 27;
+/// Most shadow rays per diffuse hit.
+pub const MAX_SHADOW_RAYS: u32 = 1024;
 
 /// How to render: everything the renderer needs besides the scene.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -70,9 +72,9 @@ impl RenderSettings {
         if self.spp == 0 {
             return bad("samples per pixel must be at least 1".into());
         }
-        if self.shadow_rays > 1024 {
+        if self.shadow_rays > MAX_SHADOW_RAYS {
             return bad(format!(
-                "{} shadow rays per hit is more than the limit of 1024",
+                "{} shadow rays per hit is more than the limit of {MAX_SHADOW_RAYS}",
                 self.shadow_rays
             ));
         }

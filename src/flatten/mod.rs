@@ -90,6 +90,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         .min_by_key(|(e, _)| e.id())
         .map(|(_, c)| *c)
         .ok_or_else(|| Error::input(path, None, "the scene has no camera"))?;
+    if !(camera.eye.is_finite() && camera.forward.is_finite() && camera.up.is_finite()) {
+        return Err(Error::input(
+            path,
+            Some("camera".into()),
+            "the camera's position or orientation is not finite",
+        ));
+    }
 
     let mut materials: Vec<(Bsdf, u32)> = Vec::new();
     let mut textures: Vec<Arc<Texture>> = Vec::new();
@@ -169,11 +176,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             center: transform.translation,
             radius: sphere.radius * scale.x,
         };
-        if !(geom.radius > 0.0 && geom.radius.is_finite() && geom.center.is_finite()) {
+        // The bounds too must be finite: the BVH builder cannot order infinite boxes.
+        let reach = geom.center.abs().max_element() + geom.radius;
+        if !(geom.radius > 0.0 && reach.is_finite()) {
             return Err(Error::input(
                 path,
                 Some(format!("sphere '{name}'")),
-                "radius must be positive and the centre finite",
+                "radius must be positive and the sphere's bounds finite",
             ));
         }
         let material = material_index(material, None);

@@ -41,6 +41,8 @@ pub fn generate_camera_rays(
                 *count_emission = true;
                 (*origin, *direction) =
                     camera.generate_ray(*pixel, rng::uniform2(*key, 0, dim::PIXEL_JITTER));
+                // flatten refused non-finite cameras, so every camera ray is valid
+                debug_assert!(origin.is_finite() && direction.is_normalized());
             },
         );
 }

@@ -81,7 +81,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             ));
         }
     }
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| {
+    let gltf_error = |e: gltf::Error| {
         Error::input(
             path,
             None,
@@ -97,7 +97,36 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 other => format!("not a valid glTF file: {other}"),
             },
         )
-    })?;
+    };
+    // gltf-json 1.4.1's validation reads a primitive's POSITION accessor before checking that
+    // it exists, and panics when it does not (found by fuzzing): check that first.
+    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_error)?;
+    let json = unchecked.document.into_json();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let named = primitive
+                .attributes
+                .values()
+                .chain(primitive.indices.as_ref());
+            if let Some(bad) = named
+                .map(|a| a.value())
+                .find(|&a| a >= json.accessors.len())
+            {
+                return Err(Error::input(
+                    path,
+                    Some(format!("mesh {m}, primitive {p}")),
+                    format!(
+                        "accessor {bad} does not exist (the file has {})",
+                        json.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    let gltf = gltf::Gltf {
+        document: gltf::Document::from_json(json).map_err(gltf_error)?,
+        blob: unchecked.blob,
+    };
     let base = path.parent().unwrap_or(Path::new("."));
     let gltf::Gltf { document, blob } = gltf;
     let buffers = gltf::import_buffers(&document, Some(base), blob)
@@ -416,6 +445,55 @@ fn read_primitive(
                 primitive.mode()
             ),
         ));
+    }
+    // gltf 1.4.1's readers panic (`unreachable!`) on component types the specification
+    // forbids, and its validation does not catch them (found by fuzzing): check them here.
+    {
+        use gltf::Semantic;
+        use gltf::accessor::{DataType, Dimensions};
+        let texture_set = material.texture.as_ref().map(|t| t.set);
+        let expected: [(Option<gltf::Accessor>, &str, &[DataType], Dimensions); 4] = [
+            (
+                primitive.get(&Semantic::Positions),
+                "POSITION",
+                &[DataType::F32],
+                Dimensions::Vec3,
+            ),
+            (
+                primitive.get(&Semantic::Normals),
+                "NORMAL",
+                &[DataType::F32],
+                Dimensions::Vec3,
+            ),
+            (
+                texture_set.and_then(|set| primitive.get(&Semantic::TexCoords(set))),
+                "TEXCOORD",
+                &[DataType::F32, DataType::U8, DataType::U16],
+                Dimensions::Vec2,
+            ),
+            (
+                primitive.indices(),
+                "indices",
+                &[DataType::U8, DataType::U16, DataType::U32],
+                Dimensions::Scalar,
+            ),
+        ];
+        for (accessor, what, types, dimensions) in expected {
+            if let Some(a) = accessor {
+                if !types.contains(&a.data_type()) || a.dimensions() != dimensions {
+                    return Err(Error::input(
+                        path,
+                        at(),
+                        format!(
+                            "{what} accessor {} holds {:?} {:?}, which glTF does not allow there",
+                            a.index(),
+                            a.dimensions(),
+                            a.data_type()
+                        ),
+                    ));
+                }
+            }
+        }
     }
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let positions: Vec<Vec3> = reader

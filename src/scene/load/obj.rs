@@ -39,7 +39,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
         let full = dir.join(mtl);
         mtl_names_cell.borrow_mut().push(full.clone());
-        tobj::load_mtl(&full)
+        load_mtl_checked(&full)
     })
     .map_err(|e| {
         Error::input(
@@ -195,6 +195,20 @@ fn first_failing_line(text: &str, options: &tobj::LoadOptions) -> Option<usize> 
         if fails(mid) { bad = mid } else { good = mid }
     }
     Some(bad)
+}
+
+/// `tobj::load_mtl`, except that colour lines (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three
+/// numbers are a parse error: tobj 4.0.5 panics on them (found by fuzzing).
+fn load_mtl_checked(path: &Path) -> tobj::MTLLoadResult {
+    let bytes = std::fs::read(path).map_err(|_| tobj::LoadError::OpenFileFailed)?;
+    let text = std::str::from_utf8(&bytes).map_err(|_| tobj::LoadError::ReadError)?;
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    }
+    tobj::load_mtl_buf(&mut text.as_bytes())
 }
 
 fn face_error(path: &Path, line: Option<usize>, message: String) -> Error {

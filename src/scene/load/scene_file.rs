@@ -5,9 +5,10 @@
 //! the scene file that names them). The README documents the format with `scenes/room.toml`.
 
 use super::{BUILTIN_ROOM, Scene, SceneDefaults, UpAxis, bounding_box, import_model, place};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, closest_match};
 use crate::math::{Affine3A, Quat, Vec3};
 use crate::scene::{Camera, Emitter, FresnelModel, Material, Mesh, Name, Sphere, Transform};
+use crate::settings::{MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SHADOW_RAYS};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -23,7 +24,7 @@ struct SceneFile {
     #[serde(default)]
     include: Vec<Spanned<String>>,
     camera: Option<Spanned<CameraDef>>,
-    render: Option<SceneDefaults>,
+    render: Option<RenderDef>,
     #[serde(default)]
     materials: BTreeMap<String, Spanned<MaterialDef>>,
     #[serde(default, rename = "shape")]
@@ -65,6 +66,63 @@ struct CameraDef {
     up: [f32; 3],
     /// Vertical field of view in degrees.
     vfov: f32,
+}
+
+/// `[render]`: settings the CLI's flags may override. Spanned so that a bad value is
+/// reported where it stands; the limits are those of [`crate::settings`].
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDef {
+    width: Option<Spanned<u32>>,
+    height: Option<Spanned<u32>>,
+    spp: Option<Spanned<u32>>,
+    shadow_rays: Option<Spanned<u32>>,
+}
+
+impl RenderDef {
+    /// Checks every stated value against the renderer's limits, before anything is allocated.
+    fn validate(&self, source: &Source) -> Result<SceneDefaults> {
+        let check = |value: &Option<Spanned<u32>>,
+                     range: std::ops::RangeInclusive<u32>,
+                     what: &str|
+         -> Result<Option<u32>> {
+            match value {
+                Some(v) if !range.contains(v.get_ref()) => Err(source.error(
+                    v.span().start,
+                    if *range.end() == u32::MAX {
+                        format!(
+                            "{what} must be at least {}, got {}",
+                            range.start(),
+                            v.get_ref()
+                        )
+                    } else {
+                        format!(
+                            "{what} {} is outside the accepted range {}..={}",
+                            v.get_ref(),
+                            range.start(),
+                            range.end()
+                        )
+                    },
+                )),
+                _ => Ok(value.as_ref().map(|v| *v.get_ref())),
+            }
+        };
+        let defaults = SceneDefaults {
+            width: check(&self.width, 1..=MAX_IMAGE_SIDE, "width")?,
+            height: check(&self.height, 1..=MAX_IMAGE_SIDE, "height")?,
+            spp: check(&self.spp, 1..=u32::MAX, "spp (samples per pixel)")?,
+            shadow_rays: check(&self.shadow_rays, 1..=MAX_SHADOW_RAYS, "shadow_rays")?,
+        };
+        if let (Some(w), Some(h), Some(at)) = (defaults.width, defaults.height, &self.height) {
+            if w as u64 * h as u64 > MAX_PIXELS {
+                return Err(source.error(
+                    at.span().start,
+                    format!("image size {w}x{h} exceeds the limit of {MAX_PIXELS} pixels"),
+                ));
+            }
+        }
+        Ok(defaults)
+    }
 }
 
 fn z_up() -> [f32; 3] {
@@ -233,7 +291,7 @@ fn gather(source: Source, stack: &mut Vec<PathBuf>, out: &mut Gathered) -> Resul
         out.camera = Some((source.clone(), camera));
     }
     if let Some(render) = file.render {
-        out.defaults = out.defaults.overridden_by(render);
+        out.defaults = out.defaults.overridden_by(render.validate(&source)?);
     }
     for (name, def) in file.materials {
         let material = material_from_def(def.get_ref())
@@ -252,9 +310,25 @@ fn canonical(path: &Path) -> PathBuf {
     std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
 }
 
-/// toml's message without its own rendering of the source line (we add line and column).
+/// toml's message without its own rendering of the source line (we add line and column),
+/// with a suggestion when an unknown key or type is close to an expected one.
 fn toml_message(e: &toml::de::Error) -> String {
-    e.message().trim_end_matches('\n').to_string()
+    let message = e.message().trim_end_matches('\n').to_string();
+    match suggestion_for_unknown(&message) {
+        Some(close) => format!("{message}; did you mean `{close}`?"),
+        None => message,
+    }
+}
+
+/// serde reports unknown keys as "unknown field `X`, expected one of `a`, `b`" (and enum
+/// tags as "unknown variant `X`, expected ..."); returns the expected name closest to `X`.
+fn suggestion_for_unknown(message: &str) -> Option<String> {
+    let rest = message
+        .strip_prefix("unknown field ")
+        .or_else(|| message.strip_prefix("unknown variant "))?;
+    let (unknown, expected) = rest.split_once(", expected ")?;
+    let candidates: Vec<&str> = expected.split('`').skip(1).step_by(2).collect();
+    closest_match(unknown.trim_matches('`'), candidates).map(str::to_string)
 }
 
 fn finite(values: &[f32], what: &str) -> std::result::Result<(), String> {
@@ -327,10 +401,14 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
             "look_at must differ from eye and up must not be parallel to the view direction".into(),
         ));
     }
-    world.spawn((
-        Name("camera".into()),
-        Camera::look_at(eye, target, up, c.vfov.to_radians()),
-    ));
+    let camera = Camera::look_at(eye, target, up, c.vfov.to_radians());
+    // Finite but huge coordinates can still overflow on the way to a unit direction.
+    if !(camera.forward.is_finite() && camera.up.is_finite()) {
+        return Err(cam_err(
+            "eye and look_at are too far apart to give a view direction".into(),
+        ));
+    }
+    world.spawn((Name("camera".into()), camera));
 
     for (index, (source, shape)) in gathered.shapes.iter().enumerate() {
         let span = shape.span().start;
@@ -345,13 +423,15 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
             .get(def.material.get_ref())
             .ok_or_else(|| {
                 let known: Vec<&str> = gathered.materials.keys().map(String::as_str).collect();
+                let wanted = def.material.get_ref();
+                let hint = match closest_match(wanted, known.iter().copied()) {
+                    Some(close) => format!("did you mean '{close}'?"),
+                    None if known.is_empty() => "the scene defines no [materials]".into(),
+                    None => format!("known: {}", known.join(", ")),
+                };
                 source.error(
                     def.material.span().start,
-                    format!(
-                        "unknown material '{}' (known: {})",
-                        def.material.get_ref(),
-                        known.join(", ")
-                    ),
+                    format!("shape '{name}': unknown material '{wanted}' ({hint})"),
                 )
             })?;
         let transform = Transform(shape_transform(def).map_err(err)?);
@@ -377,6 +457,11 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
                 return Err(err(format!(
                     "radius must be a positive number, got {radius}"
                 )));
+            }
+            if !(Vec3::from(center).abs().max_element() + radius).is_finite() {
+                return Err(err(
+                    "center and radius are too large: the sphere's bounds overflow".into(),
+                ));
             }
             if !def.vertices.is_empty() {
                 return Err(err(
