@@ -22,6 +22,8 @@ pub struct ShadeParams {
     pub bounce: u32,
     /// Shadow rays per non-delta hit; 0 disables next-event estimation.
     pub shadow_rays: u32,
+    /// Whether light and BSDF samples are combined by multiple importance sampling.
+    pub mis: bool,
     /// Bounces before Russian roulette may end a path.
     pub roulette_min_bounces: u32,
     /// Paths are cut (and counted) when they reach this depth.
@@ -47,6 +49,7 @@ pub fn shade_hits(
         &mut paths.throughput,
         &mut paths.radiance,
         &mut paths.count_emission,
+        &mut paths.bsdf_pdf,
         &mut paths.alive,
         &paths.rng_key,
     );
@@ -70,7 +73,7 @@ pub fn shade_hits(
         .with_min_len(256)
         .map(
             |(
-                (throughput, radiance, count_emission, alive, &key),
+                (throughput, radiance, count_emission, bsdf_pdf, alive, &key),
                 (&origin, &direction, &t, &slot, &barycentric, next_origin, next_direction),
                 shadow,
             )| {
@@ -78,6 +81,7 @@ pub fn shade_hits(
                     throughput,
                     radiance,
                     count_emission,
+                    bsdf_pdf,
                     alive,
                     next_origin,
                     next_direction,
@@ -115,6 +119,7 @@ struct PathView<'a> {
     throughput: &'a mut Rgb,
     radiance: &'a mut Rgb,
     count_emission: &'a mut bool,
+    bsdf_pdf: &'a mut f32,
     alive: &'a mut bool,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
@@ -167,12 +172,24 @@ fn shade_one(
     let wo = -hit.direction;
     let front = ng.dot(wo) > 0.0;
 
-    // --- Emission, where next-event estimation has not already counted it.
+    // --- Emission: in full where next-event estimation could not have found it (camera
+    // rays, delta bounces, no shadow rays), else with its MIS weight against the shadow rays.
     let emitter = scene.emitter[slot];
-    if emitter != NO_EMITTER && *path.count_emission {
+    if emitter != NO_EMITTER && (*path.count_emission || *path.bsdf_pdf > 0.0) {
         let light = &scene.lights.lights[emitter as usize];
         if front || light.two_sided {
-            *path.radiance += *path.throughput * light.radiance;
+            if *path.count_emission {
+                *path.radiance += *path.throughput * light.radiance;
+            } else {
+                // The density with which the shadow rays would have chosen this point, per
+                // solid angle at the previous vertex (the ray's origin, `t` away).
+                let cos_light = ng.dot(wo).abs();
+                let light_pdf_sa =
+                    light.select_probability / light.area * hit.t * hit.t / cos_light;
+                let weight =
+                    power_heuristic(*path.bsdf_pdf, params.shadow_rays as f32 * light_pdf_sa);
+                *path.radiance += *path.throughput * light.radiance * weight;
+            }
         }
     }
     let bsdf = scene.materials[scene.material[slot] as usize];
@@ -211,12 +228,22 @@ fn shade_one(
                 continue;
             }
             let geometry = ns.dot(wi).abs() * cos_light.abs() / distance_squared;
+            // MIS: this light sample against the BSDF sample that could have found the point.
+            let weight = if params.mis {
+                let light_pdf_sa = light.pdf_area * distance_squared / cos_light.abs();
+                let bsdf_pdf = bsdf.pdf(wo_local, frame.to_local(wi));
+                power_heuristic(params.shadow_rays as f32 * light_pdf_sa, bsdf_pdf)
+            } else {
+                1.0
+            };
             let segment = light.point - origin;
             let length = segment.length();
             shadow.direction[j] = segment / length;
             shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
-            shadow.contribution[j] =
-                *path.throughput * f * light.radiance * (geometry * inv_n / light.pdf_area);
+            shadow.contribution[j] = *path.throughput
+                * f
+                * light.radiance
+                * (geometry * inv_n / light.pdf_area * weight);
         }
     }
 
@@ -236,6 +263,11 @@ fn shade_one(
     }
     *path.throughput *= sample.weight;
     *path.count_emission = sample.is_delta || params.shadow_rays == 0;
+    *path.bsdf_pdf = if params.mis && !sample.is_delta {
+        sample.pdf
+    } else {
+        0.0
+    };
 
     // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
     if bounce >= params.roulette_min_bounces {
@@ -254,4 +286,18 @@ fn shade_one(
     *path.next_direction = wi;
     *path.alive = true;
     false
+}
+
+/// Veach's power heuristic (beta = 2) for a sample from the strategy of density `pdf`
+/// against one of density `other_pdf`, each already multiplied by its sample count.
+#[inline]
+fn power_heuristic(pdf: f32, other_pdf: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other_pdf * other_pdf);
+    if a.is_infinite() {
+        1.0
+    } else if a + b > 0.0 {
+        a / (a + b)
+    } else {
+        0.0
+    }
 }
