@@ -12,7 +12,8 @@ use common::*;
 use wavetrace::RenderSettings;
 
 /// A closed box with a ceiling light of half-width `half` (same power whatever its size), a
-/// glossy floor and a metal sphere of perceptual roughness `roughness`, and diffuse walls.
+/// glossy floor, a metal sphere and a rough glass sphere of perceptual roughness `roughness`
+/// (shadow rays must pass through the glass's surface), and diffuse walls.
 fn glossy_box(half: f32, roughness: f32) -> String {
     let radiance = 1.0 / (half * half);
     format!(
@@ -26,6 +27,7 @@ white = {{ type = "diffuse", albedo = [0.7, 0.7, 0.7] }}
 red = {{ type = "diffuse", albedo = [0.7, 0.1, 0.1] }}
 floor = {{ type = "pbr", base_color = [0.5, 0.5, 0.6], roughness = {roughness} }}
 metal = {{ type = "pbr", base_color = [0.9, 0.7, 0.4], metallic = 1.0, roughness = {roughness} }}
+glass = {{ type = "pbr", base_color = [1, 1, 1], roughness = {roughness}, transmission = 1.0 }}
 black = {{ type = "diffuse", albedo = [0, 0, 0] }}
 [[shape]]
 type = "quad"
@@ -61,6 +63,11 @@ type = "sphere"
 material = "metal"
 center = [0.35, 0.3, -0.6]
 radius = 0.4
+[[shape]]
+type = "sphere"
+material = "glass"
+center = [-0.45, 0.1, -0.3]
+radius = 0.3
 "#
     )
 }
@@ -135,12 +142,12 @@ fn strategies_agree(half: f32, roughness: f32, spp_light: u32, spp_bsdf: u32, sp
 
 #[test]
 fn small_light_rough_surfaces_same_mean_with_every_strategy() {
-    strategies_agree(0.2, 0.6, 16, 512, 16);
+    strategies_agree(0.2, 0.6, 64, 512, 64);
 }
 
 #[test]
 fn small_light_smooth_surfaces_same_mean_with_every_strategy() {
-    strategies_agree(0.2, 0.3, 32, 512, 16);
+    strategies_agree(0.2, 0.3, 64, 1024, 64);
 }
 
 #[test]

@@ -223,7 +223,8 @@ fn shade_one(
             {
                 continue; // the light's back faces us, or the light is behind the surface
             }
-            let f = bsdf.eval(wo_local, frame.to_local(wi));
+            let wi_local = frame.to_local(wi);
+            let f = bsdf.eval(wo_local, wi_local);
             if f == Rgb::ZERO {
                 continue;
             }
@@ -231,7 +232,7 @@ fn shade_one(
             // MIS: this light sample against the BSDF sample that could have found the point.
             let weight = if params.mis {
                 let light_pdf_sa = light.pdf_area * distance_squared / cos_light.abs();
-                let bsdf_pdf = bsdf.pdf(wo_local, frame.to_local(wi));
+                let bsdf_pdf = bsdf.pdf(wo_local, wi_local);
                 power_heuristic(params.shadow_rays as f32 * light_pdf_sa, bsdf_pdf)
             } else {
                 1.0
@@ -262,7 +263,11 @@ fn shade_one(
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
     *path.throughput *= sample.weight;
-    *path.count_emission = sample.is_delta || params.shadow_rays == 0;
+    // Emission the next hit finds counts in full where no shadow ray could have reached it:
+    // after delta lobes, without shadow rays, and through the surface (shadow rays only
+    // leave on the front side; rough glass transmits). Elsewhere MIS weights it, or, with
+    // light sampling only, the shadow rays alone count it.
+    *path.count_emission = sample.is_delta || params.shadow_rays == 0 || transmitted;
     *path.bsdf_pdf = if params.mis && !sample.is_delta {
         sample.pdf
     } else {
