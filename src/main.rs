@@ -81,6 +81,10 @@ struct RenderArgs {
     /// Shadow rays per diffuse hit for next-event estimation (default: the scene's, else 1).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_SHADOW_RAYS as i64))]
     shadow_rays: Option<u32>,
+    /// Light sampling only: emitters that BSDF-sampled rays find at non-delta hits are
+    /// discarded instead of being combined with the shadow rays by multiple importance sampling.
+    #[arg(long)]
+    no_mis: bool,
     /// Seed of the random numbers; the same seed gives the same image on any thread count.
     #[arg(long, default_value_t = wavetrace::math::rng::DEFAULT_SEED)]
     seed: u64,
@@ -221,6 +225,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 .shadow_rays
                 .or(scene.defaults.shadow_rays)
                 .unwrap_or(defaults.shadow_rays),
+            mis: !args.no_mis,
             seed: args.seed,
             batch_size: args.batch_size,
             ..defaults

@@ -22,6 +22,11 @@ pub struct RenderSettings {
     /// Shadow rays per diffuse hit for next-event estimation. 0 turns next-event estimation
     /// off: emitters then count only when paths hit them (brute-force path tracing).
     pub shadow_rays: u32,
+    /// Whether next-event estimation and BSDF sampling are combined by multiple importance
+    /// sampling (power heuristic). Off, emitters reached by BSDF-sampled rays from non-delta
+    /// vertices are discarded and only the shadow rays count them (light sampling only: the
+    /// seed's estimator, bit for bit). Without shadow rays it has no effect.
+    pub mis: bool,
     /// Seed of every random number.
     pub seed: u64,
     /// Paths traced together through the wavefront stages. Only speed and memory depend on
@@ -41,6 +46,7 @@ impl Default for RenderSettings {
             height: 800,
             spp: 16,
             shadow_rays: 1,
+            mis: true,
             seed: DEFAULT_SEED,
             batch_size: 1 << 16,
             roulette_min_bounces: 3,

@@ -10,11 +10,16 @@
 //! - `eta` is the relative index of refraction across an interface, transmitted over
 //!   incident side.
 
+#[cfg(test)]
+mod chi_square;
 pub mod dielectric;
 pub mod lambert;
+pub mod metallic_roughness;
+pub mod microfacet;
 pub mod mirror;
 
 pub use dielectric::FresnelModel;
+pub use metallic_roughness::MetallicRoughness;
 
 use crate::math::{Rgb, Vec2, Vec3A};
 
@@ -40,6 +45,10 @@ pub enum Bsdf {
         /// Colour filter on both lobes.
         tint: Rgb,
     },
+    /// glTF metallic-roughness microfacet surface (with the specular, ior and transmission
+    /// extensions). Build it with [`Bsdf::metallic_roughness`], which keeps exactly
+    /// Lambertian parameter sets Lambertian.
+    MetallicRoughness(MetallicRoughness),
 }
 
 /// A sampled direction with its path-throughput factor.
@@ -56,10 +65,19 @@ pub struct BsdfSample {
 }
 
 impl Bsdf {
+    /// The render-side model of glTF metallic-roughness parameters: [`Bsdf::Lambertian`] when
+    /// they reduce to it exactly (a non-metal with `specular` 0 and no transmission).
+    pub fn metallic_roughness(params: MetallicRoughness) -> Self {
+        match params.as_lambertian() {
+            Some(albedo) => Bsdf::Lambertian { albedo },
+            None => Bsdf::MetallicRoughness(params),
+        }
+    }
+
     /// Whether every lobe is a delta distribution (no light sampling is possible).
     #[inline]
     pub fn is_delta(&self) -> bool {
-        !matches!(self, Bsdf::Lambertian { .. })
+        !matches!(self, Bsdf::Lambertian { .. } | Bsdf::MetallicRoughness(_))
     }
 
     /// Whether the surface reflects nothing at all (a path ends on it).
@@ -68,6 +86,7 @@ impl Bsdf {
         match *self {
             Bsdf::Lambertian { albedo } => albedo == Rgb::ZERO,
             Bsdf::Mirror { tint } | Bsdf::Dielectric { tint, .. } => tint == Rgb::ZERO,
+            Bsdf::MetallicRoughness(params) => params.is_black(),
         }
     }
 
@@ -86,6 +105,10 @@ impl Bsdf {
                 fresnel,
                 tint: tint * colour,
             },
+            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(MetallicRoughness {
+                base_color: params.base_color * colour,
+                ..params
+            }),
         }
     }
 
@@ -94,6 +117,7 @@ impl Bsdf {
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
         match *self {
             Bsdf::Lambertian { albedo } => lambert::eval(albedo, wo, wi),
+            Bsdf::MetallicRoughness(params) => params.eval(wo, wi),
             Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => Rgb::ZERO,
         }
     }
@@ -103,6 +127,7 @@ impl Bsdf {
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         match *self {
             Bsdf::Lambertian { .. } => lambert::pdf(wo, wi),
+            Bsdf::MetallicRoughness(params) => params.pdf(wo, wi),
             Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => 0.0,
         }
     }
@@ -116,6 +141,7 @@ impl Bsdf {
             Bsdf::Dielectric { ior, fresnel, tint } => {
                 dielectric::sample(ior, fresnel, tint, wo, u_lobe)
             }
+            Bsdf::MetallicRoughness(params) => params.sample(wo, u_lobe, u),
         }
     }
 }

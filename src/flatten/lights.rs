@@ -114,6 +114,9 @@ pub struct LightSample {
     /// Incident radiance over the sample's density, per unit of `|cos|` at the receiver: the
     /// estimate is `f * |ns . wi| * weight`. Zero when the light does not shine toward the point.
     pub weight: Rgb,
+    /// Density of `wi` per solid angle (choice of the light included), for multiple importance
+    /// sampling; infinite for punctual lights, which BSDF sampling can never find.
+    pub pdf_solid_angle: f32,
 }
 
 /// All lights (area lights first, then punctual ones) with the cumulative distribution of
@@ -203,6 +206,7 @@ impl LightTable {
             wi,
             distance,
             weight,
+            pdf_solid_angle: pdf_area * distance_squared / cos_light.abs(),
         }
     }
 }
@@ -226,6 +230,7 @@ impl DeltaLight {
                     wi,
                     distance,
                     weight: self.intensity * w,
+                    pdf_solid_angle: f32::INFINITY,
                 }
             }
             DeltaKind::Spot {
@@ -242,6 +247,7 @@ impl DeltaLight {
                     wi,
                     distance,
                     weight: self.intensity * (w * t * t),
+                    pdf_solid_angle: f32::INFINITY,
                 }
             }
             DeltaKind::Directional { direction } => LightSample {
@@ -249,6 +255,7 @@ impl DeltaLight {
                 wi: -direction,
                 distance: f32::INFINITY,
                 weight: self.intensity * inv_p,
+                pdf_solid_angle: f32::INFINITY,
             },
         }
     }

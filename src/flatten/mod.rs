@@ -11,7 +11,8 @@ pub mod lights;
 pub mod spheres;
 pub mod triangles;
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::microfacet::alpha_from_roughness;
+use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
 use crate::error::{Error, Result};
 use crate::math::{Mat3A, Vec2, Vec3, Vec3A};
 use crate::scene::{
@@ -328,6 +329,33 @@ fn bsdf_of(m: &Material) -> Bsdf {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
         Material::Dielectric { ior, fresnel, tint } => Bsdf::Dielectric { ior, fresnel, tint },
+        Material::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            specular,
+            specular_color,
+            ior,
+            transmission,
+        } => {
+            if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
+                // Smooth clear glass stays the exact delta dielectric.
+                return Bsdf::Dielectric {
+                    ior,
+                    fresnel: FresnelModel::Exact,
+                    tint: base_color,
+                };
+            }
+            Bsdf::metallic_roughness(MetallicRoughness {
+                base_color,
+                metallic,
+                alpha: alpha_from_roughness(roughness),
+                ior,
+                specular,
+                specular_color,
+                transmission,
+            })
+        }
     }
 }
 

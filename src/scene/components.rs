@@ -67,6 +67,27 @@ pub enum Material {
         /// Scales both reflected and transmitted radiance (1 = clear glass).
         tint: Rgb,
     },
+    /// glTF 2.0 metallic-roughness surface with `KHR_materials_specular`, `KHR_materials_ior`
+    /// and `KHR_materials_transmission` (see `bsdf::metallic_roughness` for the model).
+    /// A non-metal with `specular` 0 and no transmission is exactly [`Material::Lambertian`];
+    /// clear glass with roughness 0 is exactly [`Material::Dielectric`].
+    MetallicRoughness {
+        /// Base colour, linear RGB in [0, 1]: diffuse albedo, metal reflectance at normal
+        /// incidence, and transmission tint.
+        base_color: Rgb,
+        /// Share of the conductor, in [0, 1].
+        metallic: f32,
+        /// Perceptual roughness in [0, 1]; the GGX alpha is its square.
+        roughness: f32,
+        /// Strength of the dielectric's specular layer, in [0, 1] (glTF default 1).
+        specular: f32,
+        /// Tint of the dielectric's normal-incidence reflectance (glTF default white).
+        specular_color: Rgb,
+        /// Index of refraction of the dielectric (glTF default 1.5).
+        ior: f32,
+        /// Share of rough glass in the dielectric, in [0, 1] (glTF default 0).
+        transmission: f32,
+    },
 }
 
 /// Surface emission: the entity is an area light of constant radiance.

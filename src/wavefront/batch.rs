@@ -60,6 +60,10 @@ pub struct PathState {
     /// Whether emission found by the next hit is counted: true after the camera and after
     /// delta bounces, where next-event estimation could not have counted it.
     pub count_emission: Vec<bool>,
+    /// Solid-angle density of the BSDF sample that made the current ray, when emission its
+    /// next hit finds is counted with a multiple-importance weight; 0 when that emission is
+    /// not counted (light sampling only). Unused while `count_emission` is true.
+    pub bsdf_pdf: Vec<f32>,
     /// Whether the path continues after this bounce (set by shading).
     pub alive: Vec<bool>,
 }
@@ -82,6 +86,7 @@ impl PathState {
         self.throughput.resize(n, Rgb::ZERO);
         self.radiance.resize(n, Rgb::ZERO);
         self.count_emission.resize(n, false);
+        self.bsdf_pdf.resize(n, 0.0);
         self.alive.resize(n, false);
     }
 }
@@ -130,6 +135,7 @@ pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut
         paths.throughput[kept] = paths.throughput[i];
         paths.radiance[kept] = paths.radiance[i];
         paths.count_emission[kept] = paths.count_emission[i];
+        paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

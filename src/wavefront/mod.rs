@@ -101,6 +101,7 @@ pub fn render(
                 let params = ShadeParams {
                     bounce,
                     shadow_rays: settings.shadow_rays,
+                    mis: settings.mis,
                     roulette_min_bounces: settings.roulette_min_bounces,
                     max_depth: settings.max_depth,
                 };

@@ -22,6 +22,8 @@ pub struct ShadeParams {
     pub bounce: u32,
     /// Shadow rays per non-delta hit; 0 disables next-event estimation.
     pub shadow_rays: u32,
+    /// Whether light and BSDF samples are combined by multiple importance sampling.
+    pub mis: bool,
     /// Bounces before Russian roulette may end a path.
     pub roulette_min_bounces: u32,
     /// Paths are cut (and counted) when they reach this depth.
@@ -47,6 +49,7 @@ pub fn shade_hits(
         &mut paths.throughput,
         &mut paths.radiance,
         &mut paths.count_emission,
+        &mut paths.bsdf_pdf,
         &mut paths.alive,
         &paths.rng_key,
     );
@@ -70,7 +73,7 @@ pub fn shade_hits(
         .with_min_len(256)
         .map(
             |(
-                (throughput, radiance, count_emission, alive, &key),
+                (throughput, radiance, count_emission, bsdf_pdf, alive, &key),
                 (&origin, &direction, &t, &slot, &barycentric, next_origin, next_direction),
                 shadow,
             )| {
@@ -78,6 +81,7 @@ pub fn shade_hits(
                     throughput,
                     radiance,
                     count_emission,
+                    bsdf_pdf,
                     alive,
                     next_origin,
                     next_direction,
@@ -115,6 +119,7 @@ struct PathView<'a> {
     throughput: &'a mut Rgb,
     radiance: &'a mut Rgb,
     count_emission: &'a mut bool,
+    bsdf_pdf: &'a mut f32,
     alive: &'a mut bool,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
@@ -167,12 +172,24 @@ fn shade_one(
     let wo = -hit.direction;
     let front = ng.dot(wo) > 0.0;
 
-    // --- Emission, where next-event estimation has not already counted it.
+    // --- Emission: in full where next-event estimation could not have found it (camera
+    // rays, delta bounces, no shadow rays), else with its MIS weight against the shadow rays.
     let emitter = scene.emitter[slot];
-    if emitter != NO_EMITTER && *path.count_emission {
+    if emitter != NO_EMITTER && (*path.count_emission || *path.bsdf_pdf > 0.0) {
         let light = &scene.lights.lights[emitter as usize];
         if front || light.two_sided {
-            *path.radiance += *path.throughput * light.radiance;
+            if *path.count_emission {
+                *path.radiance += *path.throughput * light.radiance;
+            } else {
+                // The density with which the shadow rays would have chosen this point, per
+                // solid angle at the previous vertex (the ray's origin, `t` away).
+                let cos_light = ng.dot(wo).abs();
+                let light_pdf_sa =
+                    light.select_probability / light.area * hit.t * hit.t / cos_light;
+                let weight =
+                    power_heuristic(*path.bsdf_pdf, params.shadow_rays as f32 * light_pdf_sa);
+                *path.radiance += *path.throughput * light.radiance * weight;
+            }
         }
     }
     let material = scene.material[slot] as usize;
@@ -212,10 +229,21 @@ fn shade_one(
             if light.weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
                 continue; // the light does not shine here, or it is behind the surface
             }
-            let f = bsdf.eval(wo_local, frame.to_local(wi));
+            let wi_local = frame.to_local(wi);
+            let f = bsdf.eval(wo_local, wi_local);
             if f == Rgb::ZERO {
                 continue;
             }
+            // MIS: this light sample against the BSDF sample that could have found the point
+            // (punctual lights have an infinite density: weight 1).
+            let mis_weight = if params.mis {
+                power_heuristic(
+                    params.shadow_rays as f32 * light.pdf_solid_angle,
+                    bsdf.pdf(wo_local, wi_local),
+                )
+            } else {
+                1.0
+            };
             if light.distance.is_finite() {
                 let segment = light.point - origin;
                 let length = segment.length();
@@ -226,7 +254,7 @@ fn shade_one(
                 shadow.t_max[j] = f32::INFINITY;
             }
             shadow.contribution[j] =
-                *path.throughput * f * light.weight * (ns.dot(wi).abs() * inv_n);
+                *path.throughput * f * light.weight * (ns.dot(wi).abs() * inv_n * mis_weight);
         }
     }
 
@@ -245,7 +273,16 @@ fn shade_one(
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
     *path.throughput *= sample.weight;
-    *path.count_emission = sample.is_delta || params.shadow_rays == 0;
+    // Emission the next hit finds counts in full where no shadow ray could have reached it:
+    // after delta lobes, without shadow rays, and through the surface (shadow rays only
+    // leave on the front side; rough glass transmits). Elsewhere MIS weights it, or, with
+    // light sampling only, the shadow rays alone count it.
+    *path.count_emission = sample.is_delta || params.shadow_rays == 0 || transmitted;
+    *path.bsdf_pdf = if params.mis && !sample.is_delta {
+        sample.pdf
+    } else {
+        0.0
+    };
 
     // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
     if bounce >= params.roulette_min_bounces {
@@ -264,4 +301,18 @@ fn shade_one(
     *path.next_direction = wi;
     *path.alive = true;
     false
+}
+
+/// Veach's power heuristic (beta = 2) for a sample from the strategy of density `pdf`
+/// against one of density `other_pdf`, each already multiplied by its sample count.
+#[inline]
+fn power_heuristic(pdf: f32, other_pdf: f32) -> f32 {
+    let (a, b) = (pdf * pdf, other_pdf * other_pdf);
+    if a.is_infinite() {
+        1.0
+    } else if a + b > 0.0 {
+        a / (a + b)
+    } else {
+        0.0
+    }
 }

@@ -151,6 +151,34 @@ enum MaterialDef {
         #[serde(default = "one")]
         tint: [f32; 3],
     },
+    /// glTF metallic-roughness; the defaults are glTF's except `metallic` (0 here: a plastic).
+    Pbr {
+        base_color: [f32; 3],
+        #[serde(default)]
+        metallic: f32,
+        #[serde(default = "half")]
+        roughness: f32,
+        #[serde(default = "unit")]
+        specular: f32,
+        #[serde(default = "one")]
+        specular_color: [f32; 3],
+        #[serde(default = "glass_ior")]
+        ior: f32,
+        #[serde(default)]
+        transmission: f32,
+    },
+}
+
+fn half() -> f32 {
+    0.5
+}
+
+fn unit() -> f32 {
+    1.0
+}
+
+fn glass_ior() -> f32 {
+    1.5
 }
 
 #[derive(Deserialize, Default, Clone, Copy)]
@@ -370,6 +398,52 @@ fn material_from_def(def: &MaterialDef) -> std::result::Result<Material, String>
                 ior,
                 fresnel,
                 tint: Vec3::from(tint),
+            }
+        }
+        MaterialDef::Pbr {
+            base_color,
+            metallic,
+            roughness,
+            specular,
+            specular_color,
+            ior,
+            transmission,
+        } => {
+            finite(&base_color, "base_color")?;
+            finite(&specular_color, "specular_color")?;
+            finite(
+                &[metallic, roughness, specular, ior, transmission],
+                "pbr parameters",
+            )?;
+            if base_color.iter().any(|&a| !(0.0..=1.0).contains(&a)) {
+                return Err("base_color components must lie in [0, 1]".into());
+            }
+            for (value, what) in [
+                (metallic, "metallic"),
+                (roughness, "roughness"),
+                (specular, "specular"),
+                (transmission, "transmission"),
+            ] {
+                if !(0.0..=1.0).contains(&value) {
+                    return Err(format!("{what} must lie in [0, 1], got {value}"));
+                }
+            }
+            if specular_color.iter().any(|&a| a < 0.0) {
+                return Err("specular_color components must be non-negative".into());
+            }
+            if ior < 1.0 || (transmission > 0.0 && ior == 1.0) {
+                return Err(format!(
+                    "ior must be at least 1 (above 1 with transmission), got {ior}"
+                ));
+            }
+            Material::MetallicRoughness {
+                base_color: Vec3::from(base_color),
+                metallic,
+                roughness,
+                specular,
+                specular_color: Vec3::from(specular_color),
+                ior,
+                transmission,
             }
         }
     })
