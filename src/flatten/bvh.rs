@@ -256,34 +256,41 @@ impl Bvh4 {
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
-        intersect: impl FnMut(u32, f32) -> f32,
+        mut intersect: impl FnMut(u32, f32) -> f32,
     ) -> bool {
+        let ray = BoxRay::new(origin, direction);
+        self.walk_until(
+            |node| ray.test(node, t_max).1,
+            |slot| intersect(slot, t_max) < f32::INFINITY,
+        )
+    }
+
+    /// Depth-first walk of every node whose lanes `enter(node)` selects, calling `leaf(slot)`
+    /// on the primitives of entered leaves until it returns true. Returns whether it did.
+    /// Shared by the single-ray and the packet any-hit queries.
+    #[inline(always)]
+    fn walk_until(&self, enter: impl FnMut(&Node4) -> u32, leaf: impl FnMut(u32) -> bool) -> bool {
         if self.nodes.is_empty() {
             false
         } else if self.depth <= SHALLOW_DEPTH {
-            self.any_hit_with_stack::<{ 3 * SHALLOW_DEPTH + 1 }>(
-                origin, direction, t_max, intersect,
-            )
+            self.walk_until_with_stack::<{ 3 * SHALLOW_DEPTH + 1 }>(enter, leaf)
         } else {
-            self.any_hit_with_stack::<{ 3 * MAX_DEPTH + 1 }>(origin, direction, t_max, intersect)
+            self.walk_until_with_stack::<{ 3 * MAX_DEPTH + 1 }>(enter, leaf)
         }
     }
 
     #[inline(always)]
-    fn any_hit_with_stack<const STACK: usize>(
+    fn walk_until_with_stack<const STACK: usize>(
         &self,
-        origin: Vec3A,
-        direction: Vec3A,
-        t_max: f32,
-        mut intersect: impl FnMut(u32, f32) -> f32,
+        mut enter: impl FnMut(&Node4) -> u32,
+        mut leaf: impl FnMut(u32) -> bool,
     ) -> bool {
-        let ray = BoxRay::new(origin, direction);
         let mut stack = [0u32; STACK];
         let mut top = 1;
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            let (_, mut mask) = ray.test(node, t_max);
+            let mut mask = enter(node);
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
@@ -294,7 +301,7 @@ impl Bvh4 {
                     continue;
                 }
                 for slot in node.child[k]..node.child[k] + count {
-                    if intersect(slot, t_max) < f32::INFINITY {
+                    if leaf(slot) {
                         return true;
                     }
                 }
@@ -371,35 +378,19 @@ impl Bvh4 {
         let axes = &axes[..constrained];
         let packet_t_max = Vec4::splat(t_max.iter().copied().fold(0.0, f32::max) * BOX_FAR_SCALE);
         let mut occluded = 0u32;
-        let mut stack = [0u32; 3 * MAX_DEPTH + 1];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            let node = &self.nodes[stack[top] as usize];
+        let enter = |node: &Node4| {
             let (mut t_near, mut t_far) = (Vec4::ZERO, packet_t_max);
             for &(near, far, lo, hi, o) in axes {
                 let (dn, df) = (node.bounds[near] - o, node.bounds[far] - o);
                 t_near = t_near.max((dn * lo).min(dn * hi));
                 t_far = t_far.min((df * lo).max(df * hi));
             }
-            let mut mask = t_near.cmple(t_far * BOX_FAR_SCALE).bitmask();
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let count = node.count[k];
-                if count == 0 {
-                    stack[top] = node.child[k];
-                    top += 1;
-                    continue;
-                }
-                for slot in node.child[k]..node.child[k] + count {
-                    occluded |= intersect(slot, all & !occluded);
-                    if occluded == all {
-                        return occluded;
-                    }
-                }
-            }
-        }
+            t_near.cmple(t_far * BOX_FAR_SCALE).bitmask()
+        };
+        self.walk_until(enter, |slot| {
+            occluded |= intersect(slot, all & !occluded);
+            occluded == all
+        });
         occluded
     }
 }
