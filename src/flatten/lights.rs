@@ -18,8 +18,31 @@ pub struct AreaLight {
     pub two_sided: bool,
     /// Surface area.
     pub area: f32,
+    /// Unit normal of a triangle (the side it emits from); unused for spheres.
+    pub normal: Vec3A,
     /// Probability of choosing this light.
     pub select_probability: f32,
+    /// Density of its sample points per unit area: `select_probability / area`.
+    pub pdf_area: f32,
+}
+
+impl AreaLight {
+    /// The light of `shape`, before the table sets its probability.
+    pub fn new(shape: Shape, radiance: Rgb, two_sided: bool) -> Self {
+        let (area, normal) = match shape {
+            Shape::Triangle(t) => (t.area(), t.normal_unnormalized().normalize_or_zero()),
+            Shape::Sphere(s) => (s.area(), Vec3A::ZERO),
+        };
+        AreaLight {
+            shape,
+            radiance,
+            two_sided,
+            area,
+            normal,
+            select_probability: 0.0,
+            pdf_area: 0.0,
+        }
+    }
 }
 
 /// A punctual light: a point, spot or directional light of zero size. Rays never hit it.
@@ -155,6 +178,7 @@ impl LightTable {
         let probability = |p: f64| (p / total) as f32;
         for (l, &p) in lights.iter_mut().zip(&powers) {
             l.select_probability = probability(p);
+            l.pdf_area = l.select_probability / l.area;
         }
         for (l, &p) in delta_lights.iter_mut().zip(&powers[lights.len()..]) {
             l.select_probability = probability(p);
@@ -180,10 +204,7 @@ impl LightTable {
             return self.delta_lights[index - self.lights.len()].sample_from(p);
         };
         let (point, normal) = match light.shape {
-            Shape::Triangle(t) => {
-                let b = sample_triangle(u);
-                (t.point(b), t.normal_unnormalized().normalize())
-            }
+            Shape::Triangle(t) => (t.point(sample_triangle(u)), light.normal),
             Shape::Sphere(s) => {
                 let n = sample_uniform_sphere(u);
                 (s.center + s.radius * n, n)
@@ -195,9 +216,9 @@ impl LightTable {
         let wi = to_light / distance;
         let cos_light = -normal.dot(wi);
         let shines = cos_light > 0.0 || (light.two_sided && cos_light < 0.0);
-        let pdf_area = light.select_probability / light.area;
+        let pdf_solid_angle = light.pdf_area * distance_squared / cos_light.abs();
         let weight = if shines && distance_squared > 0.0 {
-            light.radiance * (cos_light.abs() / (distance_squared * pdf_area))
+            light.radiance * pdf_solid_angle.recip()
         } else {
             Rgb::ZERO
         };
@@ -206,7 +227,7 @@ impl LightTable {
             wi,
             distance,
             weight,
-            pdf_solid_angle: pdf_area * distance_squared / cos_light.abs(),
+            pdf_solid_angle,
         }
     }
 }
@@ -270,16 +291,7 @@ mod tests {
     fn lights_are_chosen_in_proportion_to_power() {
         let tri =
             |s: f32| Shape::Triangle(TriangleGeom::new(Vec3A::ZERO, Vec3A::X * s, Vec3A::Y * s));
-        let light = |shape: Shape, l: f32| AreaLight {
-            shape,
-            radiance: Rgb::splat(l),
-            two_sided: false,
-            area: match shape {
-                Shape::Triangle(t) => t.area(),
-                Shape::Sphere(s) => s.area(),
-            },
-            select_probability: 0.0,
-        };
+        let light = |shape: Shape, l: f32| AreaLight::new(shape, Rgb::splat(l), false);
         // Same power: small bright and large dim.
         let table = LightTable::new(vec![light(tri(1.0), 4.0), light(tri(2.0), 1.0)], vec![]);
         assert!((table.lights[0].select_probability - 0.5).abs() < 1e-6);

@@ -20,6 +20,7 @@ use crate::scene::{
 };
 use crate::texture::Texture;
 use lights::{AreaLight, DeltaLight, LightTable};
+use rayon::prelude::*;
 use spheres::SphereGeom;
 use std::path::Path;
 use std::sync::Arc;
@@ -200,7 +201,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
     let delta_lights = punctual_lights(world, &prims, path)?;
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
-    let shapes_unordered: Vec<Shape> = prims.iter().map(|p| p.shape).collect();
+    let shapes_unordered: Vec<Shape> = prims.par_iter().map(|p| p.shape).collect();
     let (bvh, order) = bvh::build_bvh(&shapes_unordered).ok_or_else(|| {
         Error::input(
             path,
@@ -211,7 +212,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             ),
         )
     })?;
-    let ordered = || order.iter().map(|&i| &prims[i as usize]);
+    let ordered = || order.par_iter().map(|&i| &prims[i as usize]);
     // Lights come from the primitives, not the slots: a pre-split triangle owns several slots
     // but is one light.
     let mut area_lights = Vec::new();
@@ -219,24 +220,14 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         .iter()
         .map(|p| match p.emitter {
             Some(e) => {
-                let area = match p.shape {
-                    Shape::Triangle(t) => t.area(),
-                    Shape::Sphere(s) => s.area(),
-                };
-                area_lights.push(AreaLight {
-                    shape: p.shape,
-                    radiance: e.radiance,
-                    two_sided: e.two_sided,
-                    area,
-                    select_probability: 0.0,
-                });
+                area_lights.push(AreaLight::new(p.shape, e.radiance, e.two_sided));
                 (area_lights.len() - 1) as u32
             }
             None => NO_EMITTER,
         })
         .collect();
     let emitter = order
-        .iter()
+        .par_iter()
         .map(|&i| light_of_primitive[i as usize])
         .collect();
     let source_index = order.clone();

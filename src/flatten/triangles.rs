@@ -71,9 +71,9 @@ pub fn intersect_triangle(
 #[derive(Clone, Copy, Debug)]
 pub struct OriginTerms {
     /// Geometric normal `e1 x e2`.
-    ng: Vec3A,
+    pub ng: Vec3A,
     /// `v0 - origin`.
-    c: Vec3A,
+    pub c: Vec3A,
     /// `ng . c`.
     ng_dot_c: f32,
 }

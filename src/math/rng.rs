@@ -11,8 +11,8 @@ pub const DEFAULT_SEED: u64 = 0x5EED_2026;
 
 /// Random-number dimensions used within one bounce of a path.
 ///
-/// Shadow ray `j` of a bounce uses `SHADOW_FIRST + 3 j` (light choice) and the two after it
-/// (point on the light), so any number of shadow rays fits without overlapping.
+/// Shadow ray `j` of a bounce uses dimension `SHADOW_FIRST + j`, one hash split into its
+/// three numbers (see [`uniform3`]), so any number of shadow rays fits without overlapping.
 pub mod dim {
     /// Pixel jitter of the camera ray (2 numbers, bounce 0 only).
     pub const PIXEL_JITTER: u32 = 0;
@@ -22,10 +22,9 @@ pub mod dim {
     pub const BSDF_DIRECTION: u32 = 3;
     /// Russian roulette.
     pub const ROULETTE: u32 = 5;
-    /// First dimension of the shadow rays: light choice, then 2 numbers for the point.
+    /// Dimension of the first shadow ray (light choice and point on the light, 3 numbers from
+    /// one hash); shadow ray `j` uses `SHADOW_FIRST + j`.
     pub const SHADOW_FIRST: u32 = 6;
-    /// Dimensions consumed by each shadow ray.
-    pub const PER_SHADOW_RAY: u32 = 3;
 }
 
 /// SplitMix64's finaliser: a bijective 64-bit mixer with full avalanche.
@@ -44,12 +43,35 @@ pub fn path_key(seed: u64, pixel: u32, sample_index: u32) -> u64 {
     mix64(h ^ ((pixel as u64) << 32 | sample_index as u64))
 }
 
+/// 64 random bits for `dimension` of `bounce` of the path with key `key`.
+#[inline]
+fn bits(key: u64, bounce: u32, dimension: u32) -> u64 {
+    mix64(key ^ mix64((bounce as u64) << 32 | dimension as u64))
+}
+
+/// The `width` bits of `h` starting at bit `shift`, as a number in [0, 1): every value is
+/// exactly representable in an `f32` (width <= 24) and strictly below 1.
+#[inline(always)]
+fn unit_float(h: u64, shift: u32, width: u32) -> f32 {
+    ((h >> shift) & ((1 << width) - 1)) as f32 * (1.0 / (1u64 << width) as f32)
+}
+
 /// A uniform number in [0, 1) for `dimension` of `bounce` of the path with key `key`.
 #[inline]
 pub fn uniform(key: u64, bounce: u32, dimension: u32) -> f32 {
-    let h = mix64(key ^ mix64((bounce as u64) << 32 | dimension as u64));
-    // 24 high bits: every value is exactly representable and strictly below 1.
-    (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    unit_float(bits(key, bounce, dimension), 40, 24)
+}
+
+/// Three uniform numbers from the one hash of `dimension`, for a light sample: the first
+/// (which light) with 24 bits, the other two (where on it) with 20 bits each. One hash
+/// instead of three matters: every hit takes N of them.
+#[inline]
+pub fn uniform3(key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
+    let h = bits(key, bounce, dimension);
+    (
+        unit_float(h, 40, 24),
+        Vec2::new(unit_float(h, 20, 20), unit_float(h, 0, 20)),
+    )
 }
 
 /// Two uniform numbers: `dimension` and `dimension + 1`.

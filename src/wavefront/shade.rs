@@ -184,8 +184,7 @@ fn shade_one(
                 // The density with which the shadow rays would have chosen this point, per
                 // solid angle at the previous vertex (the ray's origin, `t` away).
                 let cos_light = ng.dot(wo).abs();
-                let light_pdf_sa =
-                    light.select_probability / light.area * hit.t * hit.t / cos_light;
+                let light_pdf_sa = light.pdf_area * hit.t * hit.t / cos_light;
                 let weight =
                     power_heuristic(*path.bsdf_pdf, params.shadow_rays as f32 * light_pdf_sa);
                 *path.radiance += *path.throughput * light.radiance * weight;
@@ -219,12 +218,11 @@ fn shade_one(
         let origin = offset_ray_origin(p, p_error, ng, front_normal);
         *shadow.origin = origin;
         for j in 0..params.shadow_rays as usize {
-            let d0 = dim::SHADOW_FIRST + dim::PER_SHADOW_RAY * j as u32;
-            let light = scene.lights.sample(
-                p,
-                rng::uniform(key, bounce, d0),
-                rng::uniform2(key, bounce, d0 + 1),
-            );
+            // Sampled from the offset origin, so the direction and length serve the shadow
+            // ray as they are (the offset is a rounding-error bound: it moves the estimate
+            // by nothing measurable).
+            let (u_pick, u_point) = rng::uniform3(key, bounce, dim::SHADOW_FIRST + j as u32);
+            let light = scene.lights.sample(origin, u_pick, u_point);
             let wi = light.wi;
             if light.weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
                 continue; // the light does not shine here, or it is behind the surface
@@ -244,15 +242,9 @@ fn shade_one(
             } else {
                 1.0
             };
-            if light.distance.is_finite() {
-                let segment = light.point - origin;
-                let length = segment.length();
-                shadow.direction[j] = segment / length;
-                shadow.t_max[j] = length * (1.0 - SHADOW_RAY_SHORTENING);
-            } else {
-                shadow.direction[j] = wi; // a directional light: nothing may block the way out
-                shadow.t_max[j] = f32::INFINITY;
-            }
+            // Directional lights are infinitely far: nothing may block the way out.
+            shadow.direction[j] = wi;
+            shadow.t_max[j] = light.distance * (1.0 - SHADOW_RAY_SHORTENING);
             shadow.contribution[j] =
                 *path.throughput * f * light.weight * (ns.dot(wi).abs() * inv_n * mis_weight);
         }

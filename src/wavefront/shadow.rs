@@ -4,7 +4,7 @@
 
 use super::batch::{PathState, ShadowBatch};
 use crate::flatten::FlatScene;
-use crate::flatten::bvh::PACKET_SIZE;
+use crate::flatten::bvh::{PACKET_SIZE, Packet};
 use crate::math::{Rgb, Vec3A};
 use rayon::prelude::*;
 
@@ -42,8 +42,8 @@ pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut P
                     break;
                 }
                 traced += n as u64;
-                let occluded =
-                    scene.occluded_packet(origin, &packet_direction[..n], &packet_t_max[..n]);
+                let packet = Packet::new(origin, &packet_direction[..n], &packet_t_max[..n]);
+                let occluded = scene.occluded_packet(&packet);
                 for k in 0..n {
                     if occluded & (1 << k) == 0 {
                         *radiance += contribution[index[k]];
