@@ -109,13 +109,17 @@ pub struct ShadowBatch {
 }
 
 impl ShadowBatch {
-    /// Resizes for `paths` live paths.
-    pub fn resize(&mut self, paths: usize) {
-        let n = paths * self.per_path;
-        self.origin.resize(paths, Vec3A::ZERO);
-        self.direction.resize(n, Vec3A::Z);
-        self.t_max.resize(n, 0.0);
-        self.contribution.resize(n, Rgb::ZERO);
+    /// Makes room for `paths` live paths. It only ever grows: the stages read the first
+    /// `paths` entries, which shading overwrites, so shrinking and refilling the buffers at
+    /// every batch (tens of megabytes, on one thread) would be wasted work.
+    pub fn grow_to(&mut self, paths: usize) {
+        if self.origin.len() < paths {
+            let n = paths * self.per_path;
+            self.origin.resize(paths, Vec3A::ZERO);
+            self.direction.resize(n, Vec3A::Z);
+            self.t_max.resize(n, 0.0);
+            self.contribution.resize(n, Rgb::ZERO);
+        }
     }
 }
 

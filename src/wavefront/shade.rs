@@ -43,7 +43,7 @@ pub fn shade_hits(
 ) -> u64 {
     let n = paths.len();
     next_rays.resize(n);
-    shadows.resize(n);
+    shadows.grow_to(n);
     let per = shadows.per_path;
     let path_columns = (
         &mut paths.throughput,
@@ -63,10 +63,10 @@ pub fn shade_hits(
         &mut next_rays.direction,
     );
     let shadow_columns = (
-        &mut shadows.origin,
-        shadows.direction.par_chunks_mut(per),
-        shadows.t_max.par_chunks_mut(per),
-        shadows.contribution.par_chunks_mut(per),
+        &mut shadows.origin[..n],
+        shadows.direction[..n * per].par_chunks_mut(per),
+        shadows.t_max[..n * per].par_chunks_mut(per),
+        shadows.contribution[..n * per].par_chunks_mut(per),
     );
     (path_columns, ray_columns, shadow_columns)
         .into_par_iter()

@@ -11,13 +11,13 @@ use rayon::prelude::*;
 /// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
 /// Returns the number of shadow rays traced.
 pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
-    let per = shadows.per_path;
+    let (n, per) = (paths.len(), shadows.per_path);
     (
         &mut paths.radiance,
-        &shadows.origin,
-        shadows.direction.par_chunks(per),
-        shadows.t_max.par_chunks(per),
-        shadows.contribution.par_chunks(per),
+        &shadows.origin[..n],
+        shadows.direction[..n * per].par_chunks(per),
+        shadows.t_max[..n * per].par_chunks(per),
+        shadows.contribution[..n * per].par_chunks(per),
     )
         .into_par_iter()
         .with_min_len(64)
