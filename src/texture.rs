@@ -1,5 +1,8 @@
-//! Colour textures: linear RGB texels with a sampler (wrap and filter per axis), looked up
-//! by texture coordinate. Pure data and math; loaders fill them and shading reads them.
+//! Textures: linear RGB texels with a sampler (wrap and filter per axis), looked up by
+//! texture coordinate, and the `KHR_texture_transform` of texture coordinates. Pure data and
+//! math; loaders fill them and shading reads them. Colour data (base colour, emission) is
+//! stored sRGB-encoded and decoded here; data textures (metallic-roughness, normal maps) are
+//! stored linear.
 //!
 //! Texture coordinates follow glTF: `(0, 0)` is the top-left corner of the image (the first
 //! stored row), `u` runs right and `v` down. The OBJ loader flips `v` to match.
@@ -26,6 +29,48 @@ pub enum Filter {
     Linear,
 }
 
+/// How a texture's stored values map to the linear values it holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    /// sRGB transfer function (colour textures).
+    Srgb,
+    /// Stored as they are, scaled to [0, 1] (data textures).
+    Linear,
+}
+
+/// `KHR_texture_transform` as the 2 x 3 matrix `uv' = T R S uv` (row-major: two rows of
+/// `[a, b, offset]`), applied to a mesh's texture coordinates at each lookup.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform(pub [[f32; 3]; 2]);
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl UvTransform {
+    /// Leaves coordinates as they are.
+    pub const IDENTITY: UvTransform = UvTransform([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+
+    /// From the extension's `offset`, `rotation` (radians) and `scale`.
+    pub fn from_offset_rotation_scale(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Self {
+        let ([ox, oy], [sx, sy]) = (offset, scale);
+        let (s, c) = rotation.sin_cos();
+        UvTransform([[c * sx, s * sy, ox], [-s * sx, c * sy, oy]])
+    }
+
+    /// The transformed coordinates.
+    #[inline]
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let [r0, r1] = self.0;
+        Vec2::new(
+            r0[0] * uv.x + r0[1] * uv.y + r0[2],
+            r1[0] * uv.x + r1[1] * uv.y + r1[2],
+        )
+    }
+}
+
 /// An RGB texture in linear colour, with its sampler.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texture {
@@ -37,6 +82,14 @@ pub struct Texture {
     pub wrap: [Wrap; 2],
     /// Filter used for every lookup (no mipmapping: a path tracer supersamples anyway).
     pub filter: Filter,
+}
+
+/// A stored value in [0, 1] to linear.
+fn decode(x: f32, encoding: Encoding) -> f32 {
+    match encoding {
+        Encoding::Srgb => srgb_to_linear(x),
+        Encoding::Linear => x,
+    }
 }
 
 /// sRGB-encoded 8-bit value to linear, as a table (the transfer function of IEC 61966-2-1).
@@ -66,19 +119,52 @@ impl Texture {
     /// A texture from sRGB-encoded 8-bit data with `channels` bytes per texel (1: grey,
     /// 2: grey + alpha, 3: RGB, 4: RGBA; alpha is ignored).
     pub fn from_srgb8(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
-        let lut: Vec<f32> = (0..256).map(|i| srgb_to_linear(i as f32 / 255.0)).collect();
-        Self::from_encoded(width, height, channels, bytes, |b| lut[b as usize])
+        Self::from_bytes8(width, height, channels, bytes, Encoding::Srgb)
     }
 
     /// Like [`Self::from_srgb8`] for 16-bit little-endian channels.
     pub fn from_srgb16(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
+        Self::from_bytes16(width, height, channels, bytes, Encoding::Srgb)
+    }
+
+    /// A texture from 8-bit data with `channels` bytes per texel, decoded as `encoding` says.
+    pub fn from_bytes8(
+        width: u32,
+        height: u32,
+        channels: usize,
+        bytes: &[u8],
+        encoding: Encoding,
+    ) -> Option<Self> {
+        let lut: Vec<f32> = (0..256)
+            .map(|i| decode(i as f32 / 255.0, encoding))
+            .collect();
+        Self::from_encoded(width, height, channels, bytes, |b| lut[b as usize])
+    }
+
+    /// Like [`Self::from_bytes8`] for 16-bit little-endian channels.
+    pub fn from_bytes16(
+        width: u32,
+        height: u32,
+        channels: usize,
+        bytes: &[u8],
+        encoding: Encoding,
+    ) -> Option<Self> {
         let values: Vec<u16> = bytes
             .chunks_exact(2)
             .map(|c| u16::from_le_bytes([c[0], c[1]]))
             .collect();
         Self::from_encoded(width, height, channels, &values, |v| {
-            srgb_to_linear(v as f32 / 65535.0)
+            decode(v as f32 / 65535.0, encoding)
         })
+    }
+
+    /// The mean of the texels: what the texture averages to over its whole image.
+    pub fn mean(&self) -> Rgb {
+        let sum = self
+            .texels
+            .iter()
+            .fold(glam::DVec3::ZERO, |a, t| a + t.as_dvec3());
+        (sum / self.texels.len() as f64).as_vec3()
     }
 
     fn from_encoded<T: Copy>(
@@ -196,6 +282,30 @@ mod tests {
         let mid = t.lookup(Vec2::new(0.5, 0.25));
         assert!((mid - Rgb::splat(0.5)).abs().max_element() < 1e-6);
         assert!((t.lookup(Vec2::new(0.5, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn linear_bytes_stay_linear_and_the_mean_averages_texels() {
+        let t = Texture::from_bytes8(2, 1, 3, &[255, 51, 0, 0, 0, 0], Encoding::Linear).unwrap();
+        assert_eq!(t.lookup(Vec2::new(0.25, 0.5)), Rgb::new(1.0, 0.2, 0.0));
+        assert_eq!(t.mean(), Rgb::new(0.5, 0.1, 0.0));
+    }
+
+    #[test]
+    fn uv_transform_offsets_rotates_and_scales() {
+        assert_eq!(
+            UvTransform::IDENTITY.apply(Vec2::new(0.3, 0.7)),
+            Vec2::new(0.3, 0.7)
+        );
+        let t = UvTransform::from_offset_rotation_scale([0.5, 0.0], 0.0, [0.5, 1.0]);
+        assert_eq!(t.apply(Vec2::new(1.0, 1.0)), Vec2::new(1.0, 1.0));
+        // A quarter turn (the extension's rotation is counter-clockwise in UV space).
+        let r = UvTransform::from_offset_rotation_scale(
+            [0.0, 0.0],
+            std::f32::consts::FRAC_PI_2,
+            [1.0, 1.0],
+        );
+        assert!((r.apply(Vec2::new(1.0, 0.0)) - Vec2::new(0.0, -1.0)).length() < 1e-6);
     }
 
     #[test]

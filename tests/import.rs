@@ -17,7 +17,7 @@ use wavetrace::scene::load::{
     LoadOptions, ROOM_FREE_FLOOR_CENTRE, UpAxis, bounding_box, has_lights, import_model,
     load_scene_with,
 };
-use wavetrace::scene::{AlbedoTexture, Camera, Emitter, Material, Mesh, Name, Transform};
+use wavetrace::scene::{Camera, Emitter, Material, MaterialTextures, Mesh, Name, Transform};
 use wavetrace::{FlatScene, RenderSettings, Scene, flatten, load_scene, render};
 
 fn blender_dir() -> PathBuf {
@@ -56,7 +56,7 @@ fn objects(scene: &Scene) -> BTreeMap<String, Object> {
             &Mesh,
             &Material,
             Option<&Emitter>,
-            Option<&AlbedoTexture>,
+            Option<&MaterialTextures>,
         )>()
         .iter()
     {
@@ -73,7 +73,7 @@ fn objects(scene: &Scene) -> BTreeMap<String, Object> {
             material: *material,
             emitter: emitter.copied(),
             triangles: 0,
-            textured: texture.is_some(),
+            textured: texture.is_some_and(|t| t.base_color.is_some()),
         });
         o.lo = o.lo.min(lo);
         o.hi = o.hi.max(hi);
@@ -141,37 +141,70 @@ fn blender_gltf_export_gives_the_documented_scene() {
     }
     assert_eq!(objects.len(), meshes, "no extra objects");
 
-    // Materials, as the README maps them.
-    let lambert = |r: f32, g: f32, b: f32| Material::Lambertian {
-        albedo: Rgb::new(r, g, b),
+    // Materials: the Principled BSDF inputs of the assets README (specularFactor is twice
+    // Blender's Specular IOR Level).
+    let principled = |base: [f32; 3], metallic: f32, roughness: f32, ior: f32, level: f32| {
+        (Rgb::from(base), metallic, roughness, ior, 2.0 * level)
     };
     let expect = [
-        ("Ground", lambert(0.5, 0.5, 0.5)),
-        ("Cube", lambert(0.7, 0.1, 0.1)),
-        ("Cylinder", lambert(0.1, 0.6, 0.2)),
-        ("Icosphere", lambert(0.15, 0.25, 0.8)),
-        ("MirrorBall", Material::Mirror { tint: Rgb::ONE }),
-        ("LightPanel", lambert(0.0, 0.0, 0.0)),
+        (
+            "Ground",
+            principled([0.5, 0.5, 0.5], 0.0, 1.0, 1.5, 0.0),
+            0.0,
+        ),
+        ("Cube", principled([0.7, 0.1, 0.1], 0.0, 1.0, 1.5, 0.0), 0.0),
+        (
+            "Cylinder",
+            principled([0.1, 0.6, 0.2], 0.0, 1.0, 1.5, 0.0),
+            0.0,
+        ),
+        (
+            "Icosphere",
+            principled([0.15, 0.25, 0.8], 0.0, 1.0, 1.5, 0.0),
+            0.0,
+        ),
+        (
+            "MirrorBall",
+            principled([1.0, 1.0, 1.0], 1.0, 0.0, 1.5, 0.5),
+            0.0,
+        ),
+        (
+            "GlassBall",
+            principled([1.0, 1.0, 1.0], 0.0, 0.0, 1.45, 0.5),
+            1.0,
+        ),
+        (
+            "LightPanel",
+            principled([0.0, 0.0, 0.0], 0.0, 1.0, 1.5, 0.0),
+            0.0,
+        ),
     ];
-    for (name, material) in expect {
-        let got = objects[name].material;
-        match (got, material) {
-            (Material::Lambertian { albedo: a }, Material::Lambertian { albedo: b }) => {
-                assert!(close(a, b, 1e-6), "{name}: {a} vs {b}")
-            }
-            (a, b) => assert_eq!(a, b, "{name}"),
+    for (name, (base, metal, rough, eta, spec), transmitted) in expect {
+        match objects[name].material {
+            Material::MetallicRoughness {
+                base_color,
+                metallic,
+                roughness,
+                specular,
+                specular_color,
+                ior,
+                transmission,
+            } => assert!(
+                close(base_color, base, 1e-6)
+                    && (metallic, roughness, specular, transmission)
+                        == (metal, rough, spec, transmitted)
+                    && (ior - eta).abs() < 1e-6
+                    && specular_color == Rgb::ONE,
+                "{name}: {:?}",
+                objects[name].material
+            ),
+            other => panic!("{name} is {other:?}"),
         }
         assert_eq!(
             objects[name].emitter.is_some(),
             name == "LightPanel",
             "{name}"
         );
-    }
-    match objects["GlassBall"].material {
-        Material::Dielectric { ior, tint, .. } => {
-            assert!((ior - 1.45).abs() < 1e-6 && tint == Rgb::ONE)
-        }
-        other => panic!("GlassBall is {other:?}"),
     }
     let panel = objects["LightPanel"].emitter.unwrap();
     assert_eq!(panel.radiance, Rgb::splat(10.0));
@@ -181,6 +214,27 @@ fn blender_gltf_export_gives_the_documented_scene() {
     );
     // The panel's front faces down (-Z in Blender's frame).
     let flat = flatten(&with_camera(scene_world_clone(&path)), &path).unwrap();
+    // Rendered as the README promises: diffuse ones exactly Lambertian, the mirror and the
+    // glass exactly the seed's delta materials.
+    use wavetrace::bsdf::Bsdf;
+    let mut kinds: Vec<&str> = flat
+        .materials
+        .iter()
+        .map(|m| match m {
+            Bsdf::Lambertian { .. } => "lambertian",
+            Bsdf::Mirror { tint } if *tint == Rgb::ONE => "mirror",
+            Bsdf::Dielectric { ior, .. } if (ior - 1.45).abs() < 1e-6 => "glass",
+            _ => "other",
+        })
+        .collect();
+    kinds.sort();
+    kinds.dedup();
+    assert_eq!(
+        kinds,
+        ["glass", "lambertian", "mirror"],
+        "{:?}",
+        flat.materials
+    );
     let light = &flat.lights.lights[0];
     match light.shape {
         Shape::Triangle(t) => assert!(t.normal_unnormalized().normalize().z < -0.999),
@@ -256,18 +310,18 @@ fn blender_obj_export_gives_the_documented_objects() {
     // 6 quads; 32 side quads and two 32-gon caps (30 triangles each).
     assert_eq!(cube.triangles, 12);
     assert_eq!(cylinder.triangles, 64 + 60);
-    assert_eq!(
-        cube.material,
-        Material::Lambertian {
-            albedo: Rgb::new(0.7, 0.1, 0.1)
-        }
-    );
-    assert_eq!(
-        cylinder.material,
-        Material::Lambertian {
-            albedo: Rgb::new(0.1, 0.6, 0.2)
-        }
-    );
+    // Kd = base colour, Ns 0 = roughness 1, Ks 0 = no specular layer, Ni = IOR.
+    let diffuse = |r: f32, g: f32, b: f32| Material::MetallicRoughness {
+        base_color: Rgb::new(r, g, b),
+        metallic: 0.0,
+        roughness: 1.0,
+        specular: 0.0,
+        specular_color: Rgb::ZERO,
+        ior: 1.5,
+        transmission: 0.0,
+    };
+    assert_eq!(cube.material, diffuse(0.7, 0.1, 0.1));
+    assert_eq!(cylinder.material, diffuse(0.1, 0.6, 0.2));
     assert!(cube.emitter.is_none() && cylinder.emitter.is_none());
     // The caps triangulate to their full area: pi r^2 for a 32-gon of radius 0.5, 2 caps.
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
@@ -483,7 +537,7 @@ fn sparse_accessors_and_several_primitives_with_mapped_materials() {
     parts.sort_by_key(|p| format!("{:?}", p.1));
     let glass = parts
         .iter()
-        .find(|p| matches!(p.1, Material::Dielectric { .. }))
+        .find(|p| matches!(p.1, Material::MetallicRoughness { transmission, .. } if transmission == 1.0))
         .unwrap();
     assert_eq!(
         glass.0.positions[1],
@@ -491,8 +545,10 @@ fn sparse_accessors_and_several_primitives_with_mapped_materials() {
         "sparse value applied"
     );
     assert!(
-        matches!(glass.1, Material::Dielectric { ior, .. } if ior == 1.5),
-        "default IOR 1.5"
+        matches!(glass.1, Material::MetallicRoughness { ior, metallic, roughness, .. }
+            if ior == 1.5 && metallic == 1.0 && roughness == 0.0),
+        "default IOR 1.5, glTF's default metallic 1: {:?}",
+        glass.1
     );
     let lamp = parts.iter().find(|p| p.2.is_some()).unwrap();
     let e = lamp.2.unwrap();
@@ -500,14 +556,23 @@ fn sparse_accessors_and_several_primitives_with_mapped_materials() {
     assert!(e.two_sided);
     assert_eq!(
         lamp.1,
-        Material::Lambertian {
-            albedo: Rgb::new(0.2, 0.3, 0.4)
+        Material::MetallicRoughness {
+            base_color: Rgb::new(0.2, 0.3, 0.4),
+            metallic: 0.0,
+            roughness: 1.0,
+            specular: 1.0,
+            specular_color: Rgb::ONE,
+            ior: 1.5,
+            transmission: 0.0,
         }
     );
-    assert!(parts.iter().any(|p| p.1
-        == Material::Mirror {
-            tint: Rgb::new(1.0, 0.8, 0.3)
-        }));
+    let gold = parts
+        .iter()
+        .find(|p| matches!(p.1, Material::MetallicRoughness { base_color, .. } if base_color == Rgb::new(1.0, 0.8, 0.3)))
+        .unwrap();
+    assert!(
+        matches!(gold.1, Material::MetallicRoughness { metallic, roughness, .. } if metallic == 1.0 && roughness == 0.0)
+    );
 }
 
 #[test]
@@ -528,7 +593,8 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
         "images": [{"uri": format!("data:image/png;base64,{}", base64(&png))}],
         "samplers": [{"magFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
         "textures": [{"source": 0, "sampler": 0}],
-        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 1.0, 1.0, 1.0],
+        "materials": [{"extensions": {"KHR_materials_specular": {"specularFactor": 0.0}},
+            "pbrMetallicRoughness": {"baseColorFactor": [0.5, 1.0, 1.0, 1.0],
             "metallicFactor": 0.0,
             "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform":
                 {"offset": [0.5, 0.0], "scale": [0.5, 1.0]}}}}}],
@@ -538,12 +604,17 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
     let path = write_gltf(&scratch("texture"), "texture.gltf", &doc);
     let scene = import_model(&path, UpAxis::Y).expect("loads");
     let mesh = scene.world.query::<&Mesh>().iter().next().unwrap().clone();
-    // uv' = offset + scale * uv.
     assert_eq!(
         mesh.uvs,
-        [[0.5, 0.0], [1.0, 0.0], [0.5, 1.0]].map(wavetrace::math::Vec2::from)
+        [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]].map(wavetrace::math::Vec2::from)
     );
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
+    // uv' = offset + scale * uv, applied at each lookup.
+    let transform = flat.material_textures[0].base_color.uv_transform;
+    assert_eq!(
+        [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]].map(|uv| transform.apply(uv.into())),
+        [[0.5, 0.0], [1.0, 0.0], [0.5, 1.0]].map(wavetrace::math::Vec2::from)
+    );
     assert_eq!(flat.textures.len(), 1);
     let t = &flat.textures[0];
     let left = t.lookup(wavetrace::math::Vec2::new(0.25, 0.5));
@@ -586,7 +657,7 @@ fn punctual_light_doc(light: Value, light_height: f32) -> Value {
     ];
     b.into_doc(json!({
         "scenes": [{"nodes": [0, 1, 2]}],
-        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"],
         "extensions": {"KHR_lights_punctual": {"lights": [light]}},
         "nodes": [
             {"name": "ground", "mesh": 0},
@@ -595,7 +666,8 @@ fn punctual_light_doc(light: Value, light_height: f32) -> Value {
              "extensions": {"KHR_lights_punctual": {"light": 0}}}
         ],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.001, "aspectRatio": 1.0, "znear": 0.01}}],
-        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0}}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0},
+            "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": positions}, "indices": indices, "material": 0}]}]
     }))
 }
@@ -827,11 +899,15 @@ fn mtl_mapping_covers_mirror_glass_emitter_and_texture() {
          newmtl polished\nKd 0.5 0.5 0.5\nillum 3\n\
          newmtl glass\nKd 1 1 1\nNi 1.33\nd 0.2\nillum 2\n\
          newmtl tr\nKd 1 1 1\nTr 0.5\n\
-         newmtl lamp\nKd 0 0 0\nKe 5 4 3\n",
+         newmtl lamp\nKd 0 0 0\nKe 5 4 3\n\
+         newmtl brushed\nKd 0.8 0.7 0.6\nKs 0.25 0.25 0.25\nNs 250\nPm 1\nNi 1.4\n\
+         newmtl satin\nKd 0.5 0.5 0.5\nKs 0.5 0.5 0.5\nNs 250\nPr 0.3\n",
     )
     .unwrap();
     let mut obj = String::from("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n");
-    for m in ["mirror", "polished", "glass", "tr", "lamp"] {
+    for m in [
+        "mirror", "polished", "glass", "tr", "lamp", "brushed", "satin",
+    ] {
         obj += &format!("o {m}\nusemtl {m}\nf 1 2 3\n");
     }
     let path = dir.join("m.obj");
@@ -853,10 +929,27 @@ fn mtl_mapping_covers_mirror_glass_emitter_and_texture() {
     let lamp = o["lamp"].emitter.unwrap();
     assert_eq!(lamp.radiance, Rgb::new(5.0, 4.0, 3.0));
     assert!(!lamp.two_sided);
-    assert_eq!(
-        o["lamp"].material,
-        Material::Lambertian { albedo: Rgb::ZERO }
+    assert!(
+        matches!(o["lamp"].material, Material::MetallicRoughness { base_color, specular, .. }
+            if base_color == Rgb::ZERO && specular == 0.0)
     );
+    // Ns 250 is roughness 1 - sqrt(250 / 1000) = 0.5; Pr wins over Ns; Ks = specular colour / 2.
+    let pbr =
+        |base: f32, metallic: f32, roughness: f32, ks: f32, ior: f32| Material::MetallicRoughness {
+            base_color: if base == 0.0 {
+                Rgb::new(0.8, 0.7, 0.6)
+            } else {
+                Rgb::splat(base)
+            },
+            metallic,
+            roughness,
+            specular: 1.0,
+            specular_color: Rgb::splat(2.0 * ks),
+            ior,
+            transmission: 0.0,
+        };
+    assert_eq!(o["brushed"].material, pbr(0.0, 1.0, 0.5, 0.25, 1.4));
+    assert_eq!(o["satin"].material, pbr(0.5, 0.0, 0.3, 0.5, 1.5));
 
     // map_Kd: the vase of assets/ is textured.
     let vase = import_model(&repo("assets/vase.obj"), UpAxis::Y).expect("loads");

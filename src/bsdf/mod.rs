@@ -112,6 +112,24 @@ impl Bsdf {
         }
     }
 
+    /// The same model with `metallic` scaled by `metallic_scale` and the perceptual roughness
+    /// by `roughness_scale` (a glTF metallic-roughness texture's blue and green); only
+    /// [`Bsdf::MetallicRoughness`] has these parameters.
+    #[inline]
+    pub fn with_metallic_roughness_scaled(self, metallic_scale: f32, roughness_scale: f32) -> Bsdf {
+        match self {
+            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(MetallicRoughness {
+                metallic: params.metallic * metallic_scale,
+                // alpha = roughness^2, so it scales by the square; the clamp to MIN_ALPHA
+                // commutes with the scale because the scale is at most 1.
+                alpha: (params.alpha * roughness_scale * roughness_scale)
+                    .clamp(microfacet::MIN_ALPHA, 1.0),
+                ..params
+            }),
+            other => other,
+        }
+    }
+
     /// BSDF value for a pair of directions (zero for delta lobes).
     #[inline]
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {

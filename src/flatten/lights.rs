@@ -140,7 +140,14 @@ pub struct LightSample {
     /// Density of `wi` per solid angle (choice of the light included), for multiple importance
     /// sampling; infinite for punctual lights, which BSDF sampling can never find.
     pub pdf_solid_angle: f32,
+    /// Index of the area light sampled (into [`LightTable::lights`]), or [`NOT_AREA_LIGHT`].
+    pub area_light: u32,
+    /// Barycentrics of `point` on a triangle light (for its emission texture).
+    pub barycentric: Vec2,
 }
+
+/// [`LightSample::area_light`] of a punctual light.
+pub const NOT_AREA_LIGHT: u32 = u32::MAX;
 
 /// All lights (area lights first, then punctual ones) with the cumulative distribution of
 /// their power.
@@ -203,11 +210,14 @@ impl LightTable {
         let Some(light) = self.lights.get(index) else {
             return self.delta_lights[index - self.lights.len()].sample_from(p);
         };
-        let (point, normal) = match light.shape {
-            Shape::Triangle(t) => (t.point(sample_triangle(u)), light.normal),
+        let (point, normal, barycentric) = match light.shape {
+            Shape::Triangle(t) => {
+                let b = sample_triangle(u);
+                (t.point(b), light.normal, b)
+            }
             Shape::Sphere(s) => {
                 let n = sample_uniform_sphere(u);
-                (s.center + s.radius * n, n)
+                (s.center + s.radius * n, n, Vec2::ZERO)
             }
         };
         let to_light = point - p;
@@ -228,6 +238,8 @@ impl LightTable {
             distance,
             weight,
             pdf_solid_angle,
+            area_light: index as u32,
+            barycentric,
         }
     }
 }
@@ -252,6 +264,8 @@ impl DeltaLight {
                     distance,
                     weight: self.intensity * w,
                     pdf_solid_angle: f32::INFINITY,
+                    area_light: NOT_AREA_LIGHT,
+                    barycentric: Vec2::ZERO,
                 }
             }
             DeltaKind::Spot {
@@ -269,6 +283,8 @@ impl DeltaLight {
                     distance,
                     weight: self.intensity * (w * t * t),
                     pdf_solid_angle: f32::INFINITY,
+                    area_light: NOT_AREA_LIGHT,
+                    barycentric: Vec2::ZERO,
                 }
             }
             DeltaKind::Directional { direction } => LightSample {
@@ -277,6 +293,8 @@ impl DeltaLight {
                 distance: f32::INFINITY,
                 weight: self.intensity * inv_p,
                 pdf_solid_angle: f32::INFINITY,
+                area_light: NOT_AREA_LIGHT,
+                barycentric: Vec2::ZERO,
             },
         }
     }

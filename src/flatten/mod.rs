@@ -8,18 +8,21 @@
 
 pub mod bvh;
 pub mod lights;
+pub mod materials;
 pub mod spheres;
 pub mod triangles;
 
 use crate::bsdf::microfacet::alpha_from_roughness;
 use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
 use crate::error::{Error, Result};
-use crate::math::{Mat3A, Vec2, Vec3, Vec3A};
+use crate::math::{Mat3A, Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
-    AlbedoTexture, Camera, Emitter, Material, Mesh, Name, PunctualLight, Sphere, Transform,
+    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
+    VertexTangents,
 };
 use crate::texture::Texture;
 use lights::{AreaLight, DeltaLight, LightTable};
+use materials::{SurfaceTextures, TextureInterner, TextureRef, TexturedEmission};
 use rayon::prelude::*;
 use spheres::SphereGeom;
 use std::path::Path;
@@ -28,7 +31,7 @@ use triangles::TriangleGeom;
 
 /// Marks a primitive that emits nothing in [`FlatScene::emitter`].
 pub const NO_EMITTER: u32 = u32::MAX;
-/// Marks an untextured material in [`FlatScene::material_texture`].
+/// Marks an unset texture in a [`materials::TextureRef`].
 pub const NO_TEXTURE: u32 = u32::MAX;
 
 /// The geometry of one primitive, as the intersection test reads it (64 bytes).
@@ -50,19 +53,23 @@ pub struct FlatScene {
     /// Texture coordinates of the three vertices per slot (zero when the mesh has none);
     /// read only for textured materials.
     pub vertex_uvs: Vec<[Vec2; 3]>,
+    /// Tangents of the three vertices per slot (world space, `w` = handedness, see
+    /// [`VertexTangents`]); empty unless some material has a normal map.
+    pub vertex_tangents: Vec<[Vec4; 3]>,
     /// Material index per slot, into `materials`.
     pub material: Vec<u32>,
     /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
     pub emitter: Vec<u32>,
     /// Distinct materials.
     pub materials: Vec<Bsdf>,
-    /// Texture per material, into `textures`, or [`NO_TEXTURE`]: it multiplies the
-    /// material's colour at the hit's texture coordinates.
-    pub material_texture: Vec<u32>,
+    /// Textures per material, looked up at the hit's texture coordinates.
+    pub material_textures: Vec<SurfaceTextures>,
     /// Distinct textures.
     pub textures: Vec<Arc<Texture>>,
     /// Emitting primitives and punctual lights.
     pub lights: LightTable,
+    /// Per area light (as `lights.lights`), its emission texture; empty when no light has one.
+    pub textured_emission: Vec<Option<TexturedEmission>>,
     /// The BVH over `shapes` (slot `i` is `shapes[i]`).
     pub bvh: bvh::Bvh4,
     /// Per slot, the index of the primitive in flattening order (meshes in query order, their
@@ -79,8 +86,11 @@ struct Primitive {
     shape: Shape,
     normals: [Vec3; 3],
     uvs: [Vec2; 3],
+    tangents: [Vec4; 3],
     material: u32,
     emitter: Option<Emitter>,
+    /// The emitter's texture and the texture's mean.
+    emission_texture: Option<(TextureRef, Rgb)>,
 }
 
 /// Flattens the world into a [`FlatScene`]. `path` names the scene in errors.
@@ -100,50 +110,70 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         ));
     }
 
-    let mut materials: Vec<(Bsdf, u32)> = Vec::new();
-    let mut textures: Vec<Arc<Texture>> = Vec::new();
-    let mut material_index = |m: &Material, texture: Option<&AlbedoTexture>| -> u32 {
-        let bsdf = bsdf_of(m);
-        let texture = texture.map_or(NO_TEXTURE, |t| {
-            let found = textures.iter().position(|known| Arc::ptr_eq(known, &t.0));
+    let mut materials: Vec<(Bsdf, SurfaceTextures)> = Vec::new();
+    let mut interner = TextureInterner::default();
+    let mut material_index =
+        |m: &Material, textures: Option<&MaterialTextures>, interner: &mut TextureInterner| {
+            let surface = interner.surface(textures);
+            let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
+            let found = materials.iter().position(|b| *b == (bsdf, surface));
             found.unwrap_or_else(|| {
-                textures.push(t.0.clone());
-                textures.len() - 1
+                materials.push((bsdf, surface));
+                materials.len() - 1
             }) as u32
-        });
-        let found = materials.iter().position(|b| *b == (bsdf, texture));
-        found.unwrap_or_else(|| {
-            materials.push((bsdf, texture));
-            materials.len() - 1
-        }) as u32
-    };
+        };
+    let normal_mapped = world
+        .query::<&MaterialTextures>()
+        .iter()
+        .any(|t| t.normal.is_some());
 
     let mut prims: Vec<Primitive> = Vec::new();
     let mut warnings = Vec::new();
-    for (name, transform, mesh, material, texture, emitter) in world
+    for (name, transform, mesh, material, textures, tangents, emitter) in world
         .query::<(
             Option<&Name>,
             Option<&Transform>,
             &Mesh,
             &Material,
-            Option<&AlbedoTexture>,
+            Option<&MaterialTextures>,
+            Option<&VertexTangents>,
             Option<&Emitter>,
         )>()
         .iter()
     {
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
-        let material = material_index(material, texture);
-        let emitter = validate_emitter(emitter, path, name)?;
-        let skipped = flatten_mesh(mesh, &transform, path, name, |shape, normals, uvs| {
-            prims.push(Primitive {
-                shape,
-                normals,
-                uvs,
-                material,
-                emitter,
-            })
-        })?;
+        let material = material_index(material, textures, &mut interner);
+        let mut emitter = validate_emitter(emitter, path, name)?;
+        let emission_texture = textures
+            .and_then(|t| t.emissive.as_ref())
+            .filter(|_| emitter.is_some() && !mesh.uvs.is_empty())
+            .map(|slot| (interner.intern(Some(slot)), slot.texture.mean()));
+        if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
+            emitter = None; // a black emission texture: nothing is emitted
+        }
+        let tangents = match textures.and_then(|t| t.normal.as_ref()) {
+            Some(_) => Some(tangents),
+            None => None,
+        };
+        let skipped = flatten_mesh(
+            mesh,
+            &transform,
+            tangents,
+            path,
+            name,
+            |shape, normals, uvs, tangents| {
+                prims.push(Primitive {
+                    shape,
+                    normals,
+                    uvs,
+                    tangents,
+                    material,
+                    emitter,
+                    emission_texture,
+                })
+            },
+        )?;
         if skipped > 0 {
             warnings.push(format!(
                 "mesh '{name}': skipped {skipped} degenerate (zero-area) triangles"
@@ -187,14 +217,16 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
                 "radius must be positive and the sphere's bounds finite",
             ));
         }
-        let material = material_index(material, None);
+        let material = material_index(material, None, &mut interner);
         let emitter = validate_emitter(emitter, path, name)?;
         prims.push(Primitive {
             shape: Shape::Sphere(geom),
             normals: [Vec3::ZERO; 3],
             uvs: [Vec2::ZERO; 3],
+            tangents: [Vec4::ZERO; 3],
             material,
             emitter,
+            emission_texture: None,
         });
     }
 
@@ -216,10 +248,22 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
     // Lights come from the primitives, not the slots: a pre-split triangle owns several slots
     // but is one light.
     let mut area_lights = Vec::new();
+    let mut textured_emission = Vec::new();
     let light_of_primitive: Vec<u32> = prims
         .iter()
         .map(|p| match p.emitter {
-            Some(e) => {
+            Some(mut e) => {
+                // A textured emitter is chosen by its mean radiance; shading applies the texel.
+                textured_emission.push(p.emission_texture.map(|(texture, mean)| {
+                    let textured = TexturedEmission {
+                        texture,
+                        radiance: e.radiance,
+                        inverse_mean: materials::inverse_or_zero(mean),
+                        uvs: p.uvs,
+                    };
+                    e.radiance *= mean;
+                    textured
+                }));
                 area_lights.push(AreaLight::new(p.shape, e.radiance, e.two_sided));
                 (area_lights.len() - 1) as u32
             }
@@ -235,12 +279,22 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         shapes: ordered().map(|p| p.shape).collect(),
         vertex_normals: ordered().map(|p| p.normals).collect(),
         vertex_uvs: ordered().map(|p| p.uvs).collect(),
+        vertex_tangents: if normal_mapped {
+            ordered().map(|p| p.tangents).collect()
+        } else {
+            Vec::new()
+        },
         material: ordered().map(|p| p.material).collect(),
         emitter,
-        material_texture: materials.iter().map(|m| m.1).collect(),
+        material_textures: materials.iter().map(|m| m.1).collect(),
         materials: materials.iter().map(|m| m.0).collect(),
-        textures,
+        textures: interner.textures,
         lights: LightTable::new(area_lights, delta_lights),
+        textured_emission: if textured_emission.iter().any(Option::is_some) {
+            textured_emission
+        } else {
+            Vec::new()
+        },
         bvh,
         source_index,
         camera,
@@ -314,8 +368,9 @@ fn punctual_lights(
     Ok(out)
 }
 
-/// The render-side scattering model of a scene material.
-fn bsdf_of(m: &Material) -> Bsdf {
+/// The render-side scattering model of a scene material; `mr_textured` says whether a
+/// metallic-roughness texture varies it (which rules out the mirror special case).
+fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
     match *m {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
@@ -336,6 +391,11 @@ fn bsdf_of(m: &Material) -> Bsdf {
                     fresnel: FresnelModel::Exact,
                     tint: base_color,
                 };
+            }
+            if metallic == 1.0 && roughness == 0.0 && !mr_textured {
+                // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
+                // metal, Schlick's brightening toward grazing angles is left out).
+                return Bsdf::Mirror { tint: base_color };
             }
             Bsdf::metallic_roughness(MetallicRoughness {
                 base_color,
@@ -366,12 +426,15 @@ fn validate_emitter(e: Option<&Emitter>, path: &Path, name: &str) -> Result<Opti
 }
 
 /// Emits each valid world-space triangle of `mesh`; returns how many degenerate ones were skipped.
+/// `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))` with the file's tangents,
+/// `Some(None)` to make them per triangle.
 fn flatten_mesh(
     mesh: &Mesh,
     world_from_object: &crate::math::Affine3A,
+    tangents: Option<Option<&VertexTangents>>,
     path: &Path,
     name: &str,
-    mut emit: impl FnMut(Shape, [Vec3; 3], [Vec2; 3]),
+    mut emit: impl FnMut(Shape, [Vec3; 3], [Vec2; 3], [Vec4; 3]),
 ) -> Result<usize> {
     let at = || Some(format!("mesh '{name}'"));
     let n = mesh.positions.len();
@@ -438,7 +501,24 @@ fn flatten_mesh(
         } else {
             [a, b, c].map(|i| mesh.uvs[i as usize])
         };
-        emit(Shape::Triangle(geom), normals, uvs);
+        // Tangents: the file's (the linear part carries them; a mirroring transform flips
+        // the handedness), else one per triangle from the UVs.
+        let tangents = match tangents {
+            None => [Vec4::ZERO; 3],
+            Some(Some(VertexTangents(t))) if t.len() == n && normals[0] != Vec3::ZERO => [a, b, c]
+                .map(|i| {
+                    let t = t[i as usize];
+                    let xyz = world_from_object.matrix3 * Vec3A::from(t.truncate());
+                    let w = if (t.w < 0.0) != flips { -1.0 } else { 1.0 };
+                    xyz.normalize_or_zero().extend(w)
+                }),
+            Some(_) => {
+                let n = geom.normal_unnormalized().normalize();
+                let p = [world[a as usize], world[b as usize], world[c as usize]];
+                [materials::triangle_tangent(p, uvs, n); 3]
+            }
+        };
+        emit(Shape::Triangle(geom), normals, uvs, tangents);
     }
     Ok(skipped)
 }

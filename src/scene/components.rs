@@ -1,8 +1,8 @@
 //! ECS components of a scene. Geometry is stored in object space; [`Transform`] places it.
 
 pub use crate::bsdf::FresnelModel;
-use crate::math::{Affine3A, Rgb, Vec2, Vec3};
-use crate::texture::Texture;
+use crate::math::{Affine3A, Rgb, Vec2, Vec3, Vec4};
+use crate::texture::{Texture, UvTransform};
 use std::sync::Arc;
 
 /// Object-to-world placement of an entity (`world_from_object`).
@@ -70,7 +70,9 @@ pub enum Material {
     /// glTF 2.0 metallic-roughness surface with `KHR_materials_specular`, `KHR_materials_ior`
     /// and `KHR_materials_transmission` (see `bsdf::metallic_roughness` for the model).
     /// A non-metal with `specular` 0 and no transmission is exactly [`Material::Lambertian`];
-    /// clear glass with roughness 0 is exactly [`Material::Dielectric`].
+    /// clear glass with roughness 0 is exactly [`Material::Dielectric`]; a metal with
+    /// roughness 0 (and no metallic-roughness texture) is [`Material::Mirror`] tinted by the
+    /// base colour (exact for white; a coloured one loses Schlick's grazing brightening).
     MetallicRoughness {
         /// Base colour, linear RGB in [0, 1]: diffuse albedo, metal reflectance at normal
         /// incidence, and transmission tint.
@@ -99,11 +101,60 @@ pub struct Emitter {
     pub two_sided: bool,
 }
 
-/// A colour texture that multiplies the entity's material colour (the Lambertian albedo,
-/// the mirror or glass tint) at the texture coordinates of its [`Mesh`] (glTF
-/// `baseColorTexture`, MTL `map_Kd`). Shared between the entities that use it.
+/// A texture and how the mesh's texture coordinates reach it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct AlbedoTexture(pub Arc<Texture>);
+pub struct TextureSlot {
+    /// The image and its sampler, shared between the entities that use it.
+    pub texture: Arc<Texture>,
+    /// `KHR_texture_transform` from the mesh's coordinates to the texture's.
+    pub uv_transform: UvTransform,
+}
+
+impl TextureSlot {
+    /// The texture at the mesh's coordinates as they are.
+    pub fn new(texture: Arc<Texture>) -> Self {
+        TextureSlot {
+            texture,
+            uv_transform: UvTransform::IDENTITY,
+        }
+    }
+}
+
+/// Textures that vary the entity's material over its [`Mesh`], looked up at each hit from the
+/// interpolated texture coordinates (glTF material textures; MTL `map_Kd`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MaterialTextures {
+    /// Linear colour (decoded from sRGB) that multiplies the material's colour: the base
+    /// colour, the Lambertian albedo, the mirror or glass tint.
+    pub base_color: Option<TextureSlot>,
+    /// glTF `metallicRoughnessTexture` (linear): blue multiplies `metallic`, green multiplies
+    /// `roughness` (of [`Material::MetallicRoughness`]; other materials ignore it).
+    pub metallic_roughness: Option<TextureSlot>,
+    /// Tangent-space normal map (linear, `2 c - 1`; +x along the tangent, +y along the
+    /// bitangent, +z along the interpolated normal).
+    pub normal: Option<TextureSlot>,
+    /// glTF `normalTexture.scale`: multiplies the map's x and y.
+    pub normal_scale: f32,
+    /// Linear colour (decoded from sRGB) that multiplies the [`Emitter`]'s radiance.
+    pub emissive: Option<TextureSlot>,
+}
+
+impl MaterialTextures {
+    /// Whether no texture is set.
+    pub fn is_empty(&self) -> bool {
+        self.base_color.is_none()
+            && self.metallic_roughness.is_none()
+            && self.normal.is_none()
+            && self.emissive.is_none()
+    }
+}
+
+/// Per-vertex tangents of the entity's [`Mesh`] (glTF `TANGENT`, object space): `xyz` is the
+/// direction of increasing `u`, `w` (+-1) the handedness, so that the bitangent is
+/// `cross(normal, xyz) * w`. Without it, normal maps use tangents made per triangle from the
+/// texture coordinates.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexTangents(pub Vec<Vec4>);
 
 /// A punctual (delta) light at the entity's origin, shining along the entity's local `-z`
 /// (glTF `KHR_lights_punctual`). Rays never hit it; it is reached only by next-event

@@ -10,6 +10,7 @@ pub mod intersect;
 pub mod shade;
 pub mod shadow;
 pub mod stats;
+mod surface;
 
 use crate::camera::PinholeCamera;
 use crate::error::Result;

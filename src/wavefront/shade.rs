@@ -2,8 +2,9 @@
 //! estimation shadow rays, sample the BSDF for the next ray, and play Russian roulette.
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
+use super::surface;
 use crate::flatten::spheres::SphereGeom;
-use crate::flatten::{FlatScene, NO_EMITTER, NO_TEXTURE, Shape};
+use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
 use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
@@ -178,8 +179,9 @@ fn shade_one(
     if emitter != NO_EMITTER && (*path.count_emission || *path.bsdf_pdf > 0.0) {
         let light = &scene.lights.lights[emitter as usize];
         if front || light.two_sided {
+            let emitted = surface::emitted_radiance(scene, emitter, hit.barycentric);
             if *path.count_emission {
-                *path.radiance += *path.throughput * light.radiance;
+                *path.radiance += *path.throughput * emitted;
             } else {
                 // The density with which the shadow rays would have chosen this point, per
                 // solid angle at the previous vertex (the ray's origin, `t` away).
@@ -187,20 +189,12 @@ fn shade_one(
                 let light_pdf_sa = light.pdf_area * hit.t * hit.t / cos_light;
                 let weight =
                     power_heuristic(*path.bsdf_pdf, params.shadow_rays as f32 * light_pdf_sa);
-                *path.radiance += *path.throughput * light.radiance * weight;
+                *path.radiance += *path.throughput * emitted * weight;
             }
         }
     }
     let material = scene.material[slot] as usize;
-    let mut bsdf = scene.materials[material];
-    let texture = scene.material_texture[material];
-    if texture != NO_TEXTURE {
-        // The texture multiplies the material's colour at the interpolated coordinates.
-        let [t0, t1, t2] = scene.vertex_uvs[slot];
-        let b = hit.barycentric;
-        let uv = t0 * (1.0 - b.x - b.y) + t1 * b.x + t2 * b.y;
-        bsdf = bsdf.tinted(scene.textures[texture as usize].lookup(uv));
-    }
+    let (bsdf, ns) = surface::textured_surface(scene, material, slot, hit.barycentric, ng, ns, wo);
     if bsdf.is_black() {
         return false; // e.g. a light source: it reflects nothing
     }
@@ -224,7 +218,8 @@ fn shade_one(
             let (u_pick, u_point) = rng::uniform3(key, bounce, dim::SHADOW_FIRST + j as u32);
             let light = scene.lights.sample(origin, u_pick, u_point);
             let wi = light.wi;
-            if light.weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
+            let light_weight = surface::light_sample_weight(scene, &light);
+            if light_weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
                 continue; // the light does not shine here, or it is behind the surface
             }
             let wi_local = frame.to_local(wi);
@@ -246,7 +241,7 @@ fn shade_one(
             shadow.direction[j] = wi;
             shadow.t_max[j] = light.distance * (1.0 - SHADOW_RAY_SHORTENING);
             shadow.contribution[j] =
-                *path.throughput * f * light.weight * (ns.dot(wi).abs() * inv_n * mis_weight);
+                *path.throughput * f * light_weight * (ns.dot(wi).abs() * inv_n * mis_weight);
         }
     }
 

@@ -9,11 +9,12 @@
 
 use super::{Scene, SceneDefaults, UpAxis, check_mesh};
 use crate::error::{Error, Result};
-use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3};
+use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
-    AlbedoTexture, Camera, Emitter, FresnelModel, Material, Mesh, Name, PunctualLight, Transform,
+    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, TextureSlot, Transform,
+    VertexTangents,
 };
-use crate::texture::{Filter, Texture, Wrap};
+use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
 use gltf::mesh::Mode;
 use std::collections::HashMap;
@@ -30,28 +31,17 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_texture_transform",
 ];
 
-/// Metallic at least this and roughness at most [`MIRROR_MAX_ROUGHNESS`] make a mirror.
-const MIRROR_MIN_METALLIC: f32 = 0.99;
-/// See [`MIRROR_MIN_METALLIC`].
-const MIRROR_MAX_ROUGHNESS: f32 = 0.05;
-/// Transmission at least this makes smooth glass.
-const GLASS_MIN_TRANSMISSION: f32 = 0.5;
-
 /// How one glTF material appears in the world.
 struct ImportedMaterial {
     material: Material,
     emitter: Option<Emitter>,
-    texture: Option<TextureRef>,
+    textures: MaterialTextures,
+    /// Texture coordinate set (`TEXCOORD_n`) the textures read, if any texture is used.
+    uv_set: Option<u32>,
 }
 
-/// A base-colour texture and how a primitive's UVs reach it.
-struct TextureRef {
-    texture: Arc<Texture>,
-    /// Texture coordinate set (`TEXCOORD_n`).
-    set: u32,
-    /// `KHR_texture_transform`, applied to the UVs at load time.
-    uv_transform: Option<[[f32; 3]; 2]>,
-}
+/// Decoded textures by glTF texture index and how their values are encoded.
+type TextureTable = HashMap<(usize, Encoding), Arc<Texture>>;
 
 /// Loads a glTF file into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
@@ -139,11 +129,19 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         .map(|m| import_material(&m, &textures, &mut warnings))
         .collect();
     let default_material = ImportedMaterial {
-        material: Material::Lambertian {
-            albedo: Rgb::ONE, // glTF's default material: base colour 1, metallic 1, roughness 1
+        // glTF's default material: base colour 1, metallic 1, roughness 1.
+        material: Material::MetallicRoughness {
+            base_color: Rgb::ONE,
+            metallic: 1.0,
+            roughness: 1.0,
+            specular: 1.0,
+            specular_color: Rgb::ONE,
+            ior: 1.5,
+            transmission: 0.0,
         },
         emitter: None,
-        texture: None,
+        textures: MaterialTextures::default(),
+        uv_set: None,
     };
 
     let scene = document
@@ -186,7 +184,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     .material()
                     .index()
                     .map_or(&default_material, |i| &materials[i]);
-                let mesh_data = read_primitive(&primitive, &mesh, imported, &buffers, path)?;
+                let (mesh_data, tangents) =
+                    read_primitive(&primitive, &mesh, imported, &buffers, path)?;
                 let entity = world.spawn((
                     Name(name.clone()),
                     Transform(world_from_node),
@@ -196,10 +195,13 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 if let Some(e) = imported.emitter {
                     world.insert_one(entity, e).expect("just spawned");
                 }
-                if let Some(t) = &imported.texture {
+                if !imported.textures.is_empty() {
                     world
-                        .insert_one(entity, AlbedoTexture(t.texture.clone()))
+                        .insert_one(entity, imported.textures.clone())
                         .expect("just spawned");
+                }
+                if let Some(t) = tangents {
+                    world.insert_one(entity, t).expect("just spawned");
                 }
             }
         }
@@ -272,28 +274,42 @@ fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camer
     }
 }
 
-/// Decodes the images used as base-colour textures (sRGB to linear), with their samplers.
-/// Indexed like `document.textures()`; `None` where a texture is unused or unreadable.
+/// Every texture a material reads, with the encoding of its use: colour textures (base
+/// colour, emission) are sRGB, data textures (metallic-roughness, normal) linear.
+fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
+    let mut uses = Vec::new();
+    for m in document.materials() {
+        let pbr = m.pbr_metallic_roughness();
+        let srgb = [pbr.base_color_texture(), m.emissive_texture()];
+        let linear = [pbr.metallic_roughness_texture()];
+        for info in srgb.into_iter().flatten() {
+            uses.push((info.texture().index(), Encoding::Srgb));
+        }
+        for info in linear.into_iter().flatten() {
+            uses.push((info.texture().index(), Encoding::Linear));
+        }
+        if let Some(n) = m.normal_texture() {
+            uses.push((n.texture().index(), Encoding::Linear));
+        }
+    }
+    uses.sort_by_key(|&(i, e)| (i, e == Encoding::Linear));
+    uses.dedup();
+    uses
+}
+
+/// Decodes the images the materials use (sRGB colour to linear where the use is colour),
+/// with their samplers.
 fn import_textures(
     document: &gltf::Document,
     base: &Path,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<Vec<Option<Arc<Texture>>>> {
-    let used: Vec<usize> = document
-        .materials()
-        .filter_map(|m| m.pbr_metallic_roughness().base_color_texture())
-        .map(|info| info.texture().index())
-        .collect();
-    let mut out = vec![None; document.textures().len()];
-    if used.is_empty() {
-        return Ok(out);
-    }
+) -> Result<TextureTable> {
+    let mut out = TextureTable::new();
     let mut images: HashMap<usize, gltf::image::Data> = HashMap::new();
-    for texture in document.textures() {
-        if !used.contains(&texture.index()) {
-            continue;
-        }
+    let textures: Vec<gltf::Texture> = document.textures().collect();
+    for (index, encoding) in texture_uses(document) {
+        let texture = &textures[index];
         let image = texture.source();
         if !images.contains_key(&image.index()) {
             let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
@@ -309,15 +325,16 @@ fn import_textures(
         let data = &images[&image.index()];
         use gltf::image::Format as F;
         let (w, h) = (data.width, data.height);
+        let (e, px) = (encoding, &data.pixels);
         let decoded = match data.format {
-            F::R8 => Texture::from_srgb8(w, h, 1, &data.pixels),
-            F::R8G8 => Texture::from_srgb8(w, h, 2, &data.pixels),
-            F::R8G8B8 => Texture::from_srgb8(w, h, 3, &data.pixels),
-            F::R8G8B8A8 => Texture::from_srgb8(w, h, 4, &data.pixels),
-            F::R16 => Texture::from_srgb16(w, h, 1, &data.pixels),
-            F::R16G16 => Texture::from_srgb16(w, h, 2, &data.pixels),
-            F::R16G16B16 => Texture::from_srgb16(w, h, 3, &data.pixels),
-            F::R16G16B16A16 => Texture::from_srgb16(w, h, 4, &data.pixels),
+            F::R8 => Texture::from_bytes8(w, h, 1, px, e),
+            F::R8G8 => Texture::from_bytes8(w, h, 2, px, e),
+            F::R8G8B8 => Texture::from_bytes8(w, h, 3, px, e),
+            F::R8G8B8A8 => Texture::from_bytes8(w, h, 4, px, e),
+            F::R16 => Texture::from_bytes16(w, h, 1, px, e),
+            F::R16G16 => Texture::from_bytes16(w, h, 2, px, e),
+            F::R16G16B16 => Texture::from_bytes16(w, h, 3, px, e),
+            F::R16G16B16A16 => Texture::from_bytes16(w, h, 4, px, e),
             F::R32G32B32FLOAT | F::R32G32B32A32FLOAT => {
                 let channels = if data.format == F::R32G32B32FLOAT {
                     3
@@ -357,34 +374,100 @@ fn import_textures(
             Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
             _ => Filter::Linear,
         };
-        out[texture.index()] = Some(Arc::new(decoded));
+        out.insert((index, encoding), Arc::new(decoded));
     }
     Ok(out)
+}
+
+/// A texture reference's slot and UV set (`KHR_texture_transform` may override the set).
+fn texture_slot(
+    textures: &TextureTable,
+    index: usize,
+    encoding: Encoding,
+    tex_coord: u32,
+    transform: Option<(UvTransform, Option<u32>)>,
+) -> Option<(TextureSlot, u32)> {
+    let texture = textures.get(&(index, encoding))?.clone();
+    let (uv_transform, set) = transform.unwrap_or((UvTransform::IDENTITY, None));
+    Some((
+        TextureSlot {
+            texture,
+            uv_transform,
+        },
+        set.unwrap_or(tex_coord),
+    ))
+}
+
+/// [`texture_slot`] for a typed `texture::Info`.
+fn info_slot(
+    textures: &TextureTable,
+    info: Option<gltf::texture::Info>,
+    encoding: Encoding,
+) -> Option<(TextureSlot, u32)> {
+    let info = info?;
+    let transform = info.texture_transform().map(|t| {
+        (
+            UvTransform::from_offset_rotation_scale(t.offset(), t.rotation(), t.scale()),
+            t.tex_coord(),
+        )
+    });
+    texture_slot(
+        textures,
+        info.texture().index(),
+        encoding,
+        info.tex_coord(),
+        transform,
+    )
+}
+
+/// `KHR_texture_transform` from its raw JSON (normal maps have no typed accessor for it).
+fn raw_uv_transform(t: &gltf::json::Value) -> (UvTransform, Option<u32>) {
+    let pair = |key: &str, default: f32| -> [f32; 2] {
+        let v = |i: usize| t[key][i].as_f64().map_or(default, |x| x as f32);
+        [v(0), v(1)]
+    };
+    let rotation = t["rotation"].as_f64().unwrap_or(0.0) as f32;
+    (
+        UvTransform::from_offset_rotation_scale(pair("offset", 0.0), rotation, pair("scale", 1.0)),
+        t["texCoord"].as_u64().map(|c| c as u32),
+    )
 }
 
 /// The README's mapping from glTF PBR materials to wavetrace's.
 fn import_material(
     m: &gltf::Material,
-    textures: &[Option<Arc<Texture>>],
+    textures: &TextureTable,
     warnings: &mut Vec<String>,
 ) -> ImportedMaterial {
     let name = m.name().unwrap_or("unnamed");
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _alpha] = pbr.base_color_factor();
     let base = Rgb::new(r, g, b).clamp(Rgb::ZERO, Rgb::ONE);
-    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-    let material = if transmission >= GLASS_MIN_TRANSMISSION {
-        Material::Dielectric {
-            ior: m.ior().filter(|i| *i > 0.0).unwrap_or(1.5),
-            fresnel: FresnelModel::Exact,
-            tint: base,
+    // glTF 2.0 metallic-roughness as the specification defines it; `flatten` resolves the
+    // exact special cases (Lambertian, smooth glass, mirror) from these values.
+    let unit = |x: f32| {
+        if x.is_finite() {
+            x.clamp(0.0, 1.0)
+        } else {
+            0.0
         }
-    } else if pbr.metallic_factor() >= MIRROR_MIN_METALLIC
-        && pbr.roughness_factor() <= MIRROR_MAX_ROUGHNESS
-    {
-        Material::Mirror { tint: base }
-    } else {
-        Material::Lambertian { albedo: base }
+    };
+    let specular = m.specular();
+    let material = Material::MetallicRoughness {
+        base_color: base,
+        metallic: unit(pbr.metallic_factor()),
+        roughness: unit(pbr.roughness_factor()),
+        specular: specular.as_ref().map_or(1.0, |s| unit(s.specular_factor())),
+        specular_color: specular
+            .as_ref()
+            .map_or(Rgb::ONE, |s| Rgb::from(s.specular_color_factor()))
+            .max(Rgb::ZERO),
+        // Blender omits KHR_materials_ior at glTF's default 1.5.
+        ior: m
+            .ior()
+            .filter(|i| i.is_finite() && *i >= 1.0)
+            .unwrap_or(1.5),
+        transmission: unit(m.transmission().map_or(0.0, |t| t.transmission_factor())),
     };
     let strength = m.emissive_strength().unwrap_or(1.0);
     let radiance = Rgb::from(m.emissive_factor()) * strength;
@@ -392,34 +475,48 @@ fn import_material(
         radiance,
         two_sided: m.double_sided(),
     });
-    if m.emissive_texture().is_some() {
-        warnings.push(format!(
-            "material '{name}': emissive textures are not supported; the emissive factor is used alone"
-        ));
-    }
-    let texture = pbr.base_color_texture().and_then(|info| {
-        let texture = textures[info.texture().index()].clone()?;
-        let transform = info.texture_transform();
-        let set = transform
-            .as_ref()
-            .and_then(|t| t.tex_coord())
-            .unwrap_or(info.tex_coord());
-        let uv_transform = transform.map(|t| {
-            // KHR_texture_transform: uv' = T * R * S * uv.
-            let ([ox, oy], angle, [sx, sy]) = (t.offset(), t.rotation(), t.scale());
-            let (s, c) = angle.sin_cos();
-            [[c * sx, s * sy, ox], [-s * sx, c * sy, oy]]
-        });
-        Some(TextureRef {
-            texture,
-            set,
-            uv_transform,
-        })
+    // Textures: one set of texture coordinates per mesh, so all of a material's textures
+    // must read the same `TEXCOORD_n`.
+    let normal = m.normal_texture();
+    let slots = [
+        info_slot(textures, pbr.base_color_texture(), Encoding::Srgb),
+        info_slot(textures, pbr.metallic_roughness_texture(), Encoding::Linear),
+        normal.as_ref().and_then(|n| {
+            texture_slot(
+                textures,
+                n.texture().index(),
+                Encoding::Linear,
+                n.tex_coord(),
+                n.extension_value("KHR_texture_transform")
+                    .map(raw_uv_transform),
+            )
+        }),
+        info_slot(textures, m.emissive_texture(), Encoding::Srgb),
+    ];
+    let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
+    let [base_color, metallic_roughness, normal_map, emissive] = slots.map(|slot| {
+        let (slot, set) = slot?;
+        if Some(set) != uv_set {
+            warnings.push(format!(
+                "material '{name}': a texture reads TEXCOORD_{set} while another reads \
+                 TEXCOORD_{}; only one set is supported, the texture is ignored",
+                uv_set.unwrap_or(0)
+            ));
+            return None;
+        }
+        Some(slot)
     });
     ImportedMaterial {
         material,
         emitter,
-        texture,
+        textures: MaterialTextures {
+            base_color,
+            metallic_roughness,
+            normal: normal_map,
+            normal_scale: normal.map_or(1.0, |n| n.scale()),
+            emissive,
+        },
+        uv_set,
     }
 }
 
@@ -430,7 +527,7 @@ fn read_primitive(
     material: &ImportedMaterial,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<Mesh> {
+) -> Result<(Mesh, Option<VertexTangents>)> {
     let mesh_name = match mesh.name() {
         Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
         None => format!("mesh {}", mesh.index()),
@@ -451,8 +548,13 @@ fn read_primitive(
     {
         use gltf::Semantic;
         use gltf::accessor::{DataType, Dimensions};
-        let texture_set = material.texture.as_ref().map(|t| t.set);
-        let expected: [(Option<gltf::Accessor>, &str, &[DataType], Dimensions); 4] = [
+        let texture_set = material.uv_set;
+        let tangents = material
+            .textures
+            .normal
+            .as_ref()
+            .and_then(|_| primitive.get(&Semantic::Tangents));
+        let expected: [(Option<gltf::Accessor>, &str, &[DataType], Dimensions); 5] = [
             (
                 primitive.get(&Semantic::Positions),
                 "POSITION",
@@ -471,6 +573,7 @@ fn read_primitive(
                 &[DataType::F32, DataType::U8, DataType::U16],
                 Dimensions::Vec2,
             ),
+            (tangents, "TANGENT", &[DataType::F32], Dimensions::Vec4),
             (
                 primitive.indices(),
                 "indices",
@@ -512,21 +615,20 @@ fn read_primitive(
         .read_normals()
         .map(|it| it.map(Vec3::from).collect())
         .unwrap_or_default();
-    let mut uvs: Vec<Vec2> = match &material.texture {
-        Some(t) => reader
-            .read_tex_coords(t.set)
+    let uvs: Vec<Vec2> = match material.uv_set {
+        Some(set) => reader
+            .read_tex_coords(set)
             .map(|it| it.into_f32().map(Vec2::from).collect())
             .unwrap_or_default(),
         None => Vec::new(),
     };
-    if let Some([row0, row1]) = material.texture.as_ref().and_then(|t| t.uv_transform) {
-        for uv in &mut uvs {
-            *uv = Vec2::new(
-                row0[0] * uv.x + row0[1] * uv.y + row0[2],
-                row1[0] * uv.x + row1[1] * uv.y + row1[2],
-            );
-        }
-    }
+    let tangents: Vec<Vec4> = match material.textures.normal {
+        Some(_) => reader
+            .read_tangents()
+            .map(|it| it.map(Vec4::from).collect())
+            .unwrap_or_default(),
+        None => Vec::new(),
+    };
     let flat: Vec<u32> = match (primitive.indices(), reader.read_indices()) {
         (_, Some(indices)) => indices.into_u32().collect(),
         (None, None) => (0..n as u32).collect(), // non-indexed: consecutive triples
@@ -559,5 +661,9 @@ fn read_primitive(
         indices: flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
     };
     check_mesh(path, &mesh_name, &mesh)?;
-    Ok(mesh)
+    // Tangents are only of use with vertex normals to orthogonalise against.
+    let tangents =
+        (tangents.len() == n && mesh.normals.len() == n && tangents.iter().all(|t| t.is_finite()))
+            .then_some(VertexTangents(tangents));
+    Ok((mesh, tangents))
 }

@@ -3,14 +3,16 @@
 //!
 //! Polygons are triangulated here by ear clipping in the polygon's plane, so concave faces
 //! come out right (tobj's own triangulation is a fan, correct only for convex faces). The MTL
-//! mapping is documented in the README: `Kd`/`map_Kd` -> Lambertian, `Ke` -> one-sided
-//! emitter, `illum 3` or a mirror-like `Ks` with high `Ns` -> mirror, `illum 4/6/7` or
-//! `d`/`Tr` transparency -> glass of index `Ni`.
+//! mapping is documented in the README: `Kd`/`map_Kd`, `Ks`, `Ns`/`Pr`, `Pm`, `Ni` -> glTF
+//! metallic-roughness, `Ke` -> one-sided emitter, `illum 3` or a mirror-like `Ks` with high
+//! `Ns` -> mirror, `illum 4/6/7` or `d`/`Tr` transparency -> glass of index `Ni`.
 
 use super::{Scene, SceneDefaults, UpAxis, check_mesh};
 use crate::error::{Error, Result};
 use crate::math::{Rgb, Vec2, Vec3};
-use crate::scene::{AlbedoTexture, Emitter, FresnelModel, Material, Mesh, Name, Transform};
+use crate::scene::{
+    Emitter, FresnelModel, Material, MaterialTextures, Mesh, Name, TextureSlot, Transform,
+};
 use crate::texture::Texture;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -164,7 +166,13 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         }
         if let Some(t) = texture {
             world
-                .insert_one(entity, AlbedoTexture(t))
+                .insert_one(
+                    entity,
+                    MaterialTextures {
+                        base_color: Some(TextureSlot::new(t)),
+                        ..Default::default()
+                    },
+                )
                 .expect("just spawned");
         }
     }
@@ -263,8 +271,32 @@ fn import_material(
             tint: clamped(tint, "Ks", warnings),
         }
     } else {
-        Material::Lambertian {
-            albedo: clamped(kd, "Kd", warnings),
+        // The PBR extension of MTL (Pr, Pm) where present; else roughness from the Phong
+        // exponent, inverting Blender's export `Ns = 1000 (1 - roughness)^2`.
+        let param = |key: &str| {
+            m.unknown_param
+                .get(key)
+                .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+                .filter(|x| x.is_finite())
+        };
+        let roughness = param("Pr")
+            .unwrap_or_else(|| 1.0 - (ns.max(0.0) / 1000.0).sqrt())
+            .clamp(0.0, 1.0);
+        let metallic = param("Pm").unwrap_or(0.0).clamp(0.0, 1.0);
+        // Blender writes Ks = Specular IOR Level (x tint), where level 0.5 is glTF's default
+        // specular layer: Ks 0 is no layer (exactly Lambertian), else specular colour 2 Ks.
+        let ks = clamped(ks, "Ks", warnings);
+        Material::MetallicRoughness {
+            base_color: clamped(kd, "Kd", warnings),
+            metallic,
+            roughness,
+            specular: if ks == Rgb::ZERO { 0.0 } else { 1.0 },
+            specular_color: 2.0 * ks,
+            ior: m
+                .optical_density
+                .filter(|&n| n.is_finite() && n >= 1.0)
+                .unwrap_or(1.5),
+            transmission: 0.0,
         }
     };
     let emitter = rgb(m.emissive)

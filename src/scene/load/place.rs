@@ -6,7 +6,7 @@ use super::{BUILTIN_ROOM, Scene, scene_file};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Vec3};
 use crate::scene::{
-    AlbedoTexture, Camera, Emitter, Material, Mesh, Name, PunctualLight, Sphere, Transform,
+    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
 };
 use std::path::Path;
 
@@ -100,7 +100,7 @@ pub(super) fn merge_model(
             .collect();
         for e in surfaces {
             model.insert_one(e, m).expect("exists");
-            let _ = model.remove_one::<AlbedoTexture>(e);
+            let _ = model.remove_one::<MaterialTextures>(e);
             let _ = model.remove_one::<Emitter>(e);
         }
     }

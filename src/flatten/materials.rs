@@ -1,0 +1,178 @@
+//! The texture side of the material and light tables: which textures a flattened material
+//! reads (and how its UVs reach them), the textured emission of area lights, and tangents for
+//! normal maps. Lookups happen in `wavefront::surface`; this module only lays out the data.
+
+use super::NO_TEXTURE;
+use crate::math::{Rgb, Vec2, Vec3A, Vec4};
+use crate::scene::{MaterialTextures, TextureSlot};
+use crate::texture::{Texture, UvTransform};
+use std::sync::Arc;
+
+/// A texture of [`super::FlatScene::textures`] and the transform from the primitive's UVs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`super::FlatScene::textures`] ([`NO_TEXTURE`] for none).
+    pub texture: u32,
+    /// `KHR_texture_transform`, applied at each lookup.
+    pub uv_transform: UvTransform,
+}
+
+impl Default for TextureRef {
+    fn default() -> Self {
+        TextureRef {
+            texture: NO_TEXTURE,
+            uv_transform: UvTransform::IDENTITY,
+        }
+    }
+}
+
+impl TextureRef {
+    /// Whether a texture is set.
+    #[inline]
+    pub fn is_set(&self) -> bool {
+        self.texture != NO_TEXTURE
+    }
+}
+
+/// The textures one flattened material reads at a hit (see [`MaterialTextures`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SurfaceTextures {
+    /// Multiplies the material's colour.
+    pub base_color: TextureRef,
+    /// Blue multiplies metallic, green roughness.
+    pub metallic_roughness: TextureRef,
+    /// Tangent-space normal map.
+    pub normal: TextureRef,
+    /// Multiplies the normal map's x and y.
+    pub normal_scale: f32,
+}
+
+impl SurfaceTextures {
+    /// Whether the material reads no texture (the common, fast case).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        !(self.base_color.is_set() || self.metallic_roughness.is_set() || self.normal.is_set())
+    }
+}
+
+/// The emission texture of one triangle light. Its [`super::lights::AreaLight::radiance`] is
+/// `radiance` times the texture's mean (the power estimate that chooses lights); the radiance
+/// leaving a point is `radiance` times the texel there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexturedEmission {
+    /// The emissive texture.
+    pub texture: TextureRef,
+    /// The emitter's radiance before the texture (`emissiveFactor` x strength).
+    pub radiance: Rgb,
+    /// Per channel, 1 / the texture's mean (0 where the mean is 0, which makes the texture 0
+    /// everywhere in that channel): turns a light sample drawn for the mean into one for the texel.
+    pub inverse_mean: Rgb,
+    /// Texture coordinates of the triangle's vertices, in the light's vertex order.
+    pub uvs: [Vec2; 3],
+}
+
+/// Collects distinct textures (by pointer) into the flat scene's texture list.
+#[derive(Default)]
+pub(super) struct TextureInterner {
+    pub textures: Vec<Arc<Texture>>,
+}
+
+impl TextureInterner {
+    /// The reference to `slot`'s texture, added if new.
+    pub fn intern(&mut self, slot: Option<&TextureSlot>) -> TextureRef {
+        let Some(slot) = slot else {
+            return TextureRef::default();
+        };
+        let index = self
+            .textures
+            .iter()
+            .position(|known| Arc::ptr_eq(known, &slot.texture))
+            .unwrap_or_else(|| {
+                self.textures.push(slot.texture.clone());
+                self.textures.len() - 1
+            });
+        TextureRef {
+            texture: index as u32,
+            uv_transform: slot.uv_transform,
+        }
+    }
+
+    /// The surface textures of a scene material.
+    pub fn surface(&mut self, textures: Option<&MaterialTextures>) -> SurfaceTextures {
+        let Some(t) = textures else {
+            return SurfaceTextures::default();
+        };
+        SurfaceTextures {
+            base_color: self.intern(t.base_color.as_ref()),
+            metallic_roughness: self.intern(t.metallic_roughness.as_ref()),
+            normal: self.intern(t.normal.as_ref()),
+            normal_scale: t.normal_scale,
+        }
+    }
+}
+
+/// `1 / x` per channel, 0 where `x` is 0.
+pub(super) fn inverse_or_zero(x: Rgb) -> Rgb {
+    Rgb::select(x.cmpgt(Rgb::ZERO), x.recip(), Rgb::ZERO)
+}
+
+/// A tangent for a triangle without `TANGENT` data, from its texture coordinates: `xyz` along
+/// increasing `u`, `w` the handedness that makes `cross(n, xyz) * w` point along decreasing
+/// `v` (glTF's `v` runs down the image, and normal maps' +y points up it). This is constant
+/// per triangle and not MikkTSpace: maps baked against MikkTSpace tangents come out slightly
+/// different across smooth-shaded triangles. Degenerate UVs give an arbitrary tangent.
+pub(super) fn triangle_tangent(p: [Vec3A; 3], uv: [Vec2; 3], n: Vec3A) -> Vec4 {
+    let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+    let (d1, d2) = (uv[1] - uv[0], uv[2] - uv[0]);
+    let det = d1.x * d2.y - d2.x * d1.y;
+    let fallback = || {
+        let t = n.any_orthonormal_vector();
+        Vec4::new(t.x, t.y, t.z, 1.0)
+    };
+    if det == 0.0 || !det.is_finite() {
+        return fallback();
+    }
+    let dp_du = (e1 * d2.y - e2 * d1.y) / det;
+    let dp_dv = (e2 * d1.x - e1 * d2.x) / det;
+    let t = dp_du.normalize_or_zero();
+    if t == Vec3A::ZERO || !t.is_finite() {
+        return fallback();
+    }
+    let w = if n.cross(t).dot(-dp_dv) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    Vec4::new(t.x, t.y, t.z, w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generated_tangents_follow_u_and_the_bitangent_points_up_the_image() {
+        // A quad in the xy plane, facing +z, with glTF UVs: u along +x, v down the image
+        // (along -y), so up the image is +y.
+        let p = [Vec3A::ZERO, Vec3A::X, Vec3A::new(0.0, 1.0, 0.0)];
+        let uv = [
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 0.0),
+        ];
+        let t = triangle_tangent(p, uv, Vec3A::Z);
+        assert_eq!(t, Vec4::new(1.0, 0.0, 0.0, 1.0));
+        let bitangent = Vec3A::Z.cross(Vec3A::X) * t.w;
+        assert_eq!(bitangent, Vec3A::Y);
+        // Mirrored UVs flip the handedness.
+        let mirrored = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+        ];
+        assert_eq!(triangle_tangent(p, mirrored, Vec3A::Z).w, -1.0);
+        // Degenerate UVs still give a unit tangent in the plane.
+        let t = triangle_tangent(p, [Vec2::ZERO; 3], Vec3A::Z);
+        assert!((t.truncate().length() - 1.0).abs() < 1e-6 && t.z.abs() < 1e-6);
+    }
+}

@@ -1,0 +1,131 @@
+//! Texture lookups at a hit, for the shade stage: base colour, metallic-roughness and normal
+//! maps change the material and shading normal; emission textures change the radiance a light
+//! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
+//! flat scene; nothing allocates.
+
+use crate::bsdf::Bsdf;
+use crate::flatten::FlatScene;
+use crate::flatten::lights::{LightSample, NOT_AREA_LIGHT};
+use crate::flatten::materials::{SurfaceTextures, TextureRef};
+use crate::math::{Rgb, Vec2, Vec3A, Vec4};
+
+/// Value at barycentrics `b` of a triangle whose vertices hold `v`.
+#[inline]
+fn interpolate<T>(v: [T; 3], b: Vec2) -> T
+where
+    T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    let [v0, v1, v2] = v;
+    v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y
+}
+
+/// The texel of `t` at the primitive's coordinates `uv`.
+#[inline]
+fn lookup(scene: &FlatScene, t: &TextureRef, uv: Vec2) -> Rgb {
+    scene.textures[t.texture as usize].lookup(t.uv_transform.apply(uv))
+}
+
+/// The material of a hit on `slot` at barycentrics `b`, with its textures applied, and the
+/// shading normal, normal-mapped if the material has a normal map. `ng` is the geometric
+/// normal, `ns` the interpolated shading normal (on `ng`'s side) and `wo` the direction back
+/// along the ray.
+#[inline]
+pub(super) fn textured_surface(
+    scene: &FlatScene,
+    material: usize,
+    slot: usize,
+    b: Vec2,
+    ng: Vec3A,
+    ns: Vec3A,
+    wo: Vec3A,
+) -> (Bsdf, Vec3A) {
+    let mut bsdf = scene.materials[material];
+    let textures = &scene.material_textures[material];
+    if textures.is_empty() {
+        return (bsdf, ns);
+    }
+    let uv = interpolate(scene.vertex_uvs[slot], b);
+    if textures.base_color.is_set() {
+        bsdf = bsdf.tinted(lookup(scene, &textures.base_color, uv));
+    }
+    if textures.metallic_roughness.is_set() {
+        let c = lookup(scene, &textures.metallic_roughness, uv);
+        bsdf = bsdf.with_metallic_roughness_scaled(c.z, c.y);
+    }
+    let ns = if textures.normal.is_set() {
+        mapped_normal(scene, textures, slot, b, uv, ng, ns, wo)
+    } else {
+        ns
+    };
+    (bsdf, ns)
+}
+
+/// The shading normal from a tangent-space normal map. The tangent is made orthogonal to
+/// `ns` (Gram-Schmidt); the bitangent is `cross(ns, tangent) * w`. A mapped normal that would
+/// put the viewer on the other side than the geometric normal does, or point into the
+/// surface, is refused (`ns` is kept): such a frame would let the BSDF scatter through the
+/// surface. The geometric normal still decides sides and ray offsets in the shade stage, so
+/// light never leaks whatever the map says.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn mapped_normal(
+    scene: &FlatScene,
+    textures: &SurfaceTextures,
+    slot: usize,
+    b: Vec2,
+    uv: Vec2,
+    ng: Vec3A,
+    ns: Vec3A,
+    wo: Vec3A,
+) -> Vec3A {
+    let tangents: [Vec4; 3] = scene.vertex_tangents[slot];
+    let t = interpolate(tangents, b);
+    let tangent = Vec3A::from(t.truncate());
+    let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
+    if tangent == Vec3A::ZERO {
+        return ns;
+    }
+    let handedness = if tangents[0].w < 0.0 { -1.0 } else { 1.0 };
+    let bitangent = ns.cross(tangent) * handedness;
+    let c = lookup(scene, &textures.normal, uv);
+    let s = textures.normal_scale;
+    let m = Vec3A::new(
+        (2.0 * c.x - 1.0) * s,
+        (2.0 * c.y - 1.0) * s,
+        2.0 * c.z - 1.0,
+    );
+    let n = (tangent * m.x + bitangent * m.y + ns * m.z).normalize_or_zero();
+    let viewer_side_kept = (n.dot(wo) > 0.0) == (ng.dot(wo) > 0.0);
+    if n.dot(ng) > 0.0 && viewer_side_kept {
+        n
+    } else {
+        ns
+    }
+}
+
+/// Radiance leaving area light `light` at barycentrics `b` of its triangle: its texel times
+/// its factor if it has an emission texture, else its constant radiance.
+#[inline]
+pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
+    match scene.textured_emission.get(light as usize) {
+        Some(Some(e)) => e.radiance * lookup(scene, &e.texture, interpolate(e.uvs, b)),
+        _ => scene.lights.lights[light as usize].radiance,
+    }
+}
+
+/// A light sample's weight with the emission texture at the sampled point: the table chose
+/// and weighted the light as if it emitted its mean radiance everywhere, so the weight is
+/// rescaled by texel / mean (the density is unchanged, so the estimate stays unbiased).
+#[inline]
+pub(super) fn light_sample_weight(scene: &FlatScene, sample: &LightSample) -> Rgb {
+    if sample.area_light == NOT_AREA_LIGHT {
+        return sample.weight;
+    }
+    match scene.textured_emission.get(sample.area_light as usize) {
+        Some(Some(e)) => {
+            let texel = lookup(scene, &e.texture, interpolate(e.uvs, sample.barycentric));
+            sample.weight * e.inverse_mean * texel
+        }
+        _ => sample.weight,
+    }
+}

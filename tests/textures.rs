@@ -1,0 +1,448 @@
+//! glTF material textures end to end: the test writes a `.gltf` with its `.bin` and PNG
+//! images, renders it small, and checks that each texture changes the image where it covers
+//! the quad and nowhere else, with tolerances from the renders' standard errors. Also checks
+//! that next-event estimation of a textured emitter is unbiased.
+
+mod common;
+
+use common::{assert_agree, render_image};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use wavetrace::{FlatScene, Image, RenderSettings, flatten, load_scene};
+
+/// Little-endian binary buffer with one buffer view and accessor per attribute.
+#[derive(Default)]
+struct Buffer {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Buffer {
+    fn push(&mut self, data: Vec<u8>, accessor: Value) -> usize {
+        while self.bytes.len() % 4 != 0 {
+            self.bytes.push(0);
+        }
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()}));
+        self.bytes.extend(data);
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn floats(
+        &mut self,
+        v: &[f32],
+        count: usize,
+        kind: &str,
+        minmax: Option<(Value, Value)>,
+    ) -> usize {
+        let data = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let mut a = json!({"componentType": 5126, "count": count, "type": kind});
+        if let Some((lo, hi)) = minmax {
+            a["min"] = lo;
+            a["max"] = hi;
+        }
+        self.push(data, a)
+    }
+
+    fn indices(&mut self, i: &[u16]) -> usize {
+        let data = i.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.push(
+            data,
+            json!({"componentType": 5123, "count": i.len(), "type": "SCALAR"}),
+        )
+    }
+}
+
+/// Adds a quad in glTF's z = `z` plane from (x0, -1) to (x1, 1), facing `+z` (or `-z` if
+/// `down`), with UVs spanning [0, 1]^2 (v down the image: v = 0 at y = 1), as a mesh with
+/// `material`. Returns the mesh index.
+fn quad(
+    b: &mut Buffer,
+    meshes: &mut Vec<Value>,
+    x0: f32,
+    x1: f32,
+    z: f32,
+    down: bool,
+    material: usize,
+) -> usize {
+    let p = [x0, -1.0, z, x1, -1.0, z, x1, 1.0, z, x0, 1.0, z];
+    let nz = if down { -1.0 } else { 1.0 };
+    let n = [0.0, 0.0, nz].repeat(4);
+    let uv = [0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
+    let positions = b.floats(
+        &p,
+        4,
+        "VEC3",
+        Some((json!([x0, -1.0, z]), json!([x1, 1.0, z]))),
+    );
+    let normals = b.floats(&n, 4, "VEC3", None);
+    let uvs = b.floats(&uv, 4, "VEC2", None);
+    let indices = if down {
+        b.indices(&[0, 2, 1, 0, 3, 2])
+    } else {
+        b.indices(&[0, 1, 2, 0, 2, 3])
+    };
+    meshes.push(json!({"primitives": [{
+        "attributes": {"POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs},
+        "indices": indices, "material": material}]}));
+    meshes.len() - 1
+}
+
+/// Writes `doc` (with `b` as `name.bin`) and the PNGs `images` into `dir`; returns the path.
+fn write_gltf(
+    dir: &Path,
+    name: &str,
+    mut doc: Value,
+    b: Buffer,
+    images: &[(&str, image::RgbImage)],
+) -> PathBuf {
+    std::fs::write(dir.join(format!("{name}.bin")), &b.bytes).unwrap();
+    doc["buffers"] = json!([{"uri": format!("{name}.bin"), "byteLength": b.bytes.len()}]);
+    doc["bufferViews"] = json!(b.views);
+    doc["accessors"] = json!(b.accessors);
+    doc["asset"] = json!({"version": "2.0"});
+    for (file, img) in images {
+        img.save(dir.join(file)).unwrap();
+    }
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
+    path
+}
+
+/// An 8 x 8 image: `quadrant` (0 top-left, 1 top-right, 2 bottom-left, 3 bottom-right) is
+/// `inside`, the rest `outside`. Bilinear filtering blends them only within half a texel
+/// (1/16) of the borders.
+fn quadrant_image(quadrant: u32, inside: [u8; 3], outside: [u8; 3]) -> image::RgbImage {
+    image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb(if (y / 4) * 2 + x / 4 == quadrant {
+            inside
+        } else {
+            outside
+        })
+    })
+}
+
+fn flat(path: &Path) -> FlatScene {
+    let scene = load_scene(path).expect("the test's glTF loads");
+    assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+    flatten(&scene.world, path).expect("flattens")
+}
+
+/// Mean and standard error over the pixels where `inside(u, v)` holds, from two renders with
+/// different seeds (as `common::mean_and_error`, restricted to a region).
+fn region_estimate(
+    scene: &FlatScene,
+    settings: &RenderSettings,
+    uv_of_pixel: impl Fn(u32, u32) -> (f32, f32),
+    inside: impl Fn(f32, f32) -> bool,
+) -> ([f64; 3], [f64; 3]) {
+    let render = |seed| {
+        let image: Image = render_image(scene, &RenderSettings { seed, ..*settings });
+        common::assert_finite(&image);
+        image
+    };
+    let (a, b) = (render(settings.seed), render(settings.seed ^ 0x5EED_F00D));
+    let (mut sum, mut var, mut n) = ([0.0f64; 3], [0.0f64; 3], 0.0f64);
+    for y in 0..settings.height {
+        for x in 0..settings.width {
+            let (u, v) = uv_of_pixel(x, y);
+            if !inside(u, v) {
+                continue;
+            }
+            let i = (y * settings.width + x) as usize;
+            for c in 0..3 {
+                let (p, q) = (a.pixels[i][c] as f64, b.pixels[i][c] as f64);
+                sum[c] += (p + q) / 2.0;
+                var[c] += (p - q) * (p - q) / 4.0;
+            }
+            n += 1.0;
+        }
+    }
+    assert!(n > 0.0);
+    (sum.map(|s| s / n), var.map(|v| v.sqrt() / n))
+}
+
+/// Sum of the channels and its standard error (the channels of one pixel are correlated, so
+/// the errors add).
+fn total((m, e): ([f64; 3], [f64; 3])) -> (f64, f64) {
+    (m.iter().sum(), e.iter().sum())
+}
+
+const SIZE: u32 = 24;
+
+/// Where a pixel's centre lands on the quad of [`textured_quad`]: the camera sees x, y in
+/// [-0.9, 0.9], so u = (x + 1) / 2 and v = (1 - y) / 2.
+fn uv_of_pixel(px: u32, py: u32) -> (f32, f32) {
+    let x = ((px as f32 + 0.5) / SIZE as f32 * 2.0 - 1.0) * 0.9;
+    let y = (1.0 - (py as f32 + 0.5) / SIZE as f32 * 2.0) * 0.9;
+    ((x + 1.0) / 2.0, (1.0 - y) / 2.0)
+}
+
+/// The quadrant a texture coordinate is well inside of (away from the bilinear blend at the
+/// quadrant borders), if any.
+fn quadrant_of(u: f32, v: f32) -> Option<u32> {
+    let away = |t: f32| (t - 0.5).abs() > 0.15;
+    (away(u) && away(v)).then(|| (v > 0.5) as u32 * 2 + (u > 0.5) as u32)
+}
+
+/// A textured quad facing a camera, lit head-on by a directional light (irradiance 2). The
+/// material is a white metal of roughness 0.5 with no dielectric specular layer; each
+/// texture changes one quadrant: base colour darkens the top-left one, the metallic-roughness
+/// map makes the top-right one a non-metal (so exactly Lambertian), the normal map tilts the
+/// bottom-left one by 30 degrees, and the emissive map makes the bottom-right one emit.
+fn textured_quad(
+    dir: &Path,
+    name: &str,
+    base: bool,
+    mr: bool,
+    normal: bool,
+    emissive: bool,
+) -> PathBuf {
+    let mut b = Buffer::default();
+    let mut meshes = Vec::new();
+    let mesh = quad(&mut b, &mut meshes, -1.0, 1.0, 0.0, false, 0);
+    let half_fov = (0.9f32 / 2.0).atan();
+    let mut material = json!({
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 1.0,
+            "roughnessFactor": 0.5},
+        "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}
+    });
+    let mut textures = Vec::new();
+    let mut texture = |file: &str| {
+        textures.push(json!({"source": textures.len(), "sampler": 0}));
+        (textures.len() - 1, json!({"uri": file}))
+    };
+    let mut images_json = Vec::new();
+    if base {
+        let (i, img) = texture("base.png");
+        images_json.push(img);
+        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": i});
+    }
+    if mr {
+        let (i, img) = texture("mr.png");
+        images_json.push(img);
+        material["pbrMetallicRoughness"]["metallicRoughnessTexture"] = json!({"index": i});
+    }
+    if normal {
+        let (i, img) = texture("normal.png");
+        images_json.push(img);
+        material["normalTexture"] = json!({"index": i, "scale": 1.0});
+    }
+    if emissive {
+        let (i, img) = texture("emissive.png");
+        images_json.push(img);
+        material["emissiveTexture"] = json!({"index": i});
+        material["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    }
+    let doc = json!({
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}},
+        "nodes": [
+            {"name": "quad", "mesh": mesh},
+            {"name": "eye", "camera": 0, "translation": [0.0, 0.0, 2.0]},
+            {"name": "sun", "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ],
+        "cameras": [{"type": "perspective", "perspective":
+            {"yfov": 2.0 * half_fov, "aspectRatio": 1.0, "znear": 0.01}}],
+        "materials": [material],
+        "meshes": meshes,
+        "images": images_json,
+        "textures": textures,
+        // Linear filtering, clamped: the quadrants blend only near their borders.
+        "samplers": [{"magFilter": 9729, "wrapS": 33071, "wrapT": 33071}]
+    });
+    // Base colour: sRGB 64 (linear 0.05) top-left, white elsewhere. Metallic-roughness:
+    // blue 0 (non-metal) top-right, else 1 (green 1: roughness as the factor). Normal map:
+    // (sin 30, 0, cos 30) bottom-left, else flat. Emission: (255, 128, 0) bottom-right,
+    // else black.
+    let images = [
+        ("base.png", quadrant_image(0, [64; 3], [255; 3])),
+        ("mr.png", quadrant_image(1, [0, 255, 0], [0, 255, 255])),
+        (
+            "normal.png",
+            quadrant_image(2, [191, 128, 238], [128, 128, 255]),
+        ),
+        ("emissive.png", quadrant_image(3, [255, 128, 0], [0, 0, 0])),
+    ];
+    write_gltf(dir, name, doc, b, &images)
+}
+
+#[test]
+fn each_gltf_texture_changes_its_own_region_of_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let settings = RenderSettings {
+        width: SIZE,
+        height: SIZE,
+        spp: 32,
+        ..Default::default()
+    };
+    let all = flat(&textured_quad(dir.path(), "all", true, true, true, true));
+    assert_eq!(all.textures.len(), 4, "four textures, each used once");
+    let estimate = |scene: &FlatScene, quadrant: u32| {
+        region_estimate(scene, &settings, uv_of_pixel, |u, v| {
+            quadrant_of(u, v) == Some(quadrant)
+        })
+    };
+    // Each texture against the same file without it: the difference (with - without) in the
+    // texture's quadrant has the expected sign and is beyond 4 sigma; base colour and
+    // metallic-roughness are exactly neutral (texel 1) elsewhere, so the other quadrants agree.
+    let cases = [
+        (
+            "base colour",
+            0,
+            textured_quad(dir.path(), "no-base", false, true, true, true),
+            -1.0,
+        ),
+        (
+            "metallic-roughness",
+            1,
+            textured_quad(dir.path(), "no-mr", true, false, true, true),
+            -1.0,
+        ),
+        (
+            "normal map",
+            2,
+            textured_quad(dir.path(), "no-normal", true, true, false, true),
+            -1.0,
+        ),
+    ];
+    for (what, quadrant, without, sign) in cases {
+        let without = flat(&without);
+        let (with_m, with_e) = total(estimate(&all, quadrant));
+        let (without_m, without_e) = total(estimate(&without, quadrant));
+        let sigma = (with_e * with_e + without_e * without_e).sqrt();
+        let z = (with_m - without_m) / sigma;
+        eprintln!("{what}: {with_m:.4} with vs {without_m:.4} without (z = {z:.1})");
+        assert!(
+            sign * (with_m - without_m) > 4.0 * sigma && with_m != without_m,
+            "{what}: {with_m} with the texture vs {without_m} without (sigma {sigma:.2e})"
+        );
+        if what != "normal map" {
+            for other in (0..4).filter(|&q| q != quadrant) {
+                assert_agree(
+                    &format!("{what}, quadrant {other}"),
+                    estimate(&all, other),
+                    estimate(&without, other),
+                    4.0,
+                );
+            }
+        }
+    }
+    // Emission: against the file without the emissive texture and factor, the difference is
+    // the texel's radiance (sRGB (255, 128, 0) = linear (1, 0.2158, 0)) in its quadrant and 0
+    // elsewhere (the quad cannot light itself).
+    let dark = flat(&textured_quad(
+        dir.path(),
+        "no-emission",
+        true,
+        true,
+        true,
+        false,
+    ));
+    let texel = [1.0, 0.215_860_5, 0.0];
+    for q in 0..4 {
+        let (a, ea) = estimate(&all, q);
+        let (b, eb) = estimate(&dark, q);
+        let emitted = [0, 1, 2].map(|c| a[c] - b[c]);
+        let error = [0, 1, 2].map(|c| (ea[c] * ea[c] + eb[c] * eb[c]).sqrt());
+        let expected = if q == 3 { texel } else { [0.0; 3] };
+        assert_agree(
+            &format!("emission in quadrant {q}"),
+            (emitted, error),
+            (expected, [0.0; 3]),
+            4.0,
+        );
+    }
+}
+
+/// A Lambertian floor (albedo 0.5) at glTF z = 0 under a square emitter at z = 1 facing down,
+/// seen by a camera between them. `textured` gives the emitter (x in [-1, 1]) an emission
+/// texture that is white on its left half (x < 0) and black on the right, sampled nearest;
+/// otherwise the emitter is only that left half, untextured. Both light the floor the same.
+fn half_lit_floor(dir: &Path, textured: bool) -> PathBuf {
+    let mut b = Buffer::default();
+    let mut meshes = Vec::new();
+    let floor = quad(&mut b, &mut meshes, -3.0, 3.0, 0.0, false, 0);
+    let lamp = if textured {
+        quad(&mut b, &mut meshes, -1.0, 1.0, 1.0, true, 1)
+    } else {
+        quad(&mut b, &mut meshes, -1.0, 0.0, 1.0, true, 1)
+    };
+    let mut lamp_material = json!({
+        "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0], "metallicFactor": 0.0},
+        "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}},
+        "emissiveFactor": [1.0, 1.0, 1.0]
+    });
+    if textured {
+        lamp_material["emissiveTexture"] = json!({"index": 0});
+    }
+    let doc = json!({
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "extensionsUsed": ["KHR_materials_specular"],
+        "nodes": [
+            {"name": "floor", "mesh": floor},
+            {"name": "lamp", "mesh": lamp},
+            {"name": "eye", "camera": 0, "translation": [0.0, 0.0, 0.9]}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 1.6, "aspectRatio": 1.0, "znear": 0.01}}],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0},
+             "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}},
+            lamp_material
+        ],
+        "meshes": meshes,
+        "images": [{"uri": "half.png"}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}]
+    });
+    let half = image::RgbImage::from_fn(2, 1, |x, _| {
+        image::Rgb(if x == 0 { [255; 3] } else { [0; 3] })
+    });
+    let name = if textured {
+        "textured-lamp"
+    } else {
+        "half-lamp"
+    };
+    write_gltf(dir, name, doc, b, &[("half.png", half)])
+}
+
+#[test]
+fn textured_emitters_light_the_scene_as_their_texels_say() {
+    let dir = tempfile::tempdir().unwrap();
+    let textured = flat(&half_lit_floor(dir.path(), true));
+    let half = flat(&half_lit_floor(dir.path(), false));
+    assert_eq!(textured.textured_emission.iter().flatten().count(), 2);
+    for mis in [true, false] {
+        let settings = RenderSettings {
+            width: 16,
+            height: 16,
+            spp: 32,
+            mis,
+            ..Default::default()
+        };
+        // Left and right halves of the image separately: a light that emitted its mean
+        // texel everywhere would light the floor more evenly.
+        for (side, left) in [("left", true), ("right", false)] {
+            let inside = |px: u32, _py: u32| ((px as f32) < 8.0) == left;
+            let region = |scene: &FlatScene| {
+                region_estimate(
+                    scene,
+                    &settings,
+                    |x, y| (x as f32, y as f32),
+                    |x, y| inside(x as u32, y as u32),
+                )
+            };
+            assert_agree(
+                &format!("floor, {side} half, mis {mis}"),
+                region(&textured),
+                region(&half),
+                4.0,
+            );
+        }
+    }
+}
