@@ -10,40 +10,32 @@ use wavetrace::scene::load::load_scene_str;
 
 /// A small box lit by a ceiling light, with the floor and a sphere made of `material`.
 fn box_with(material: &str) -> String {
-    format!(
-        r#"
-[camera]
-eye = [0, -0.9, 0.3]
-look_at = [0, 0.5, -0.6]
-vfov = 75
-[materials]
-white = {{ type = "diffuse", albedo = [0.7, 0.7, 0.7] }}
-probe = {material}
-black = {{ type = "diffuse", albedo = [0, 0, 0] }}
-[[shape]]
-type = "quad"
-material = "probe"
-vertices = [[-1,-1,-1],[1,-1,-1],[1,1,-1],[-1,1,-1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,-1,1],[-1,1,1],[1,1,1],[1,-1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]]
-[[shape]]
-type = "quad"
-material = "black"
-emission = [5, 5, 5]
-vertices = [[-0.4,-0.4,0.99],[-0.4,0.4,0.99],[0.4,0.4,0.99],[0.4,-0.4,0.99]]
+    let materials = format!(
+        "white = {{ type = \"diffuse\", albedo = [0.7, 0.7, 0.7] }}\nprobe = {material}\n\
+         black = {{ type = \"diffuse\", albedo = [0, 0, 0] }}"
+    );
+    BoxScene {
+        camera: BOX_CAMERA,
+        materials: &materials,
+        walls: [
+            Some("probe"),
+            None,
+            Some("white"),
+            None,
+            Some("white"),
+            None,
+        ],
+        light_half: 0.4,
+        light_radiance: 5.0,
+        extra_shapes: r#"
 [[shape]]
 type = "sphere"
 material = "probe"
 center = [0.2, 0.3, -0.6]
 radius = 0.35
-"#
-    )
+"#,
+    }
+    .toml()
 }
 
 #[test]

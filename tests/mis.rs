@@ -15,49 +15,29 @@ use wavetrace::RenderSettings;
 /// glossy floor, a metal sphere and a rough glass sphere of perceptual roughness `roughness`
 /// (shadow rays must pass through the glass's surface), and diffuse walls.
 fn glossy_box(half: f32, roughness: f32) -> String {
-    let radiance = 1.0 / (half * half);
-    format!(
+    let materials = format!(
         r#"
-[camera]
-eye = [0, -0.9, 0.3]
-look_at = [0, 0.5, -0.6]
-vfov = 75
-[materials]
 white = {{ type = "diffuse", albedo = [0.7, 0.7, 0.7] }}
 red = {{ type = "diffuse", albedo = [0.7, 0.1, 0.1] }}
 floor = {{ type = "pbr", base_color = [0.5, 0.5, 0.6], roughness = {roughness} }}
 metal = {{ type = "pbr", base_color = [0.9, 0.7, 0.4], metallic = 1.0, roughness = {roughness} }}
 glass = {{ type = "pbr", base_color = [1, 1, 1], roughness = {roughness}, transmission = 1.0 }}
-black = {{ type = "diffuse", albedo = [0, 0, 0] }}
-[[shape]]
-type = "quad"
-material = "floor"
-vertices = [[-1,-1,-1],[1,-1,-1],[1,1,-1],[-1,1,-1]]
-[[shape]]
-type = "quad"
-material = "red"
-vertices = [[-1,-1,-1],[-1,1,-1],[-1,1,1],[-1,-1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[1,-1,-1],[1,-1,1],[1,1,1],[1,1,-1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,-1,1],[-1,1,1],[1,1,1],[1,-1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,-1,-1],[-1,-1,1],[1,-1,1],[1,-1,-1]]
-[[shape]]
-type = "quad"
-material = "black"
-emission = [{radiance}, {radiance}, {radiance}]
-vertices = [[-{half},-{half},0.99],[-{half},{half},0.99],[{half},{half},0.99],[{half},-{half},0.99]]
+black = {{ type = "diffuse", albedo = [0, 0, 0] }}"#
+    );
+    BoxScene {
+        camera: BOX_CAMERA,
+        materials: &materials,
+        walls: [
+            Some("floor"),
+            Some("red"),
+            Some("white"),
+            Some("white"),
+            Some("white"),
+            Some("white"),
+        ],
+        light_half: half,
+        light_radiance: 1.0 / (half * half),
+        extra_shapes: r#"
 [[shape]]
 type = "sphere"
 material = "metal"
@@ -68,8 +48,9 @@ type = "sphere"
 material = "glass"
 center = [-0.45, 0.1, -0.3]
 radius = 0.3
-"#
-    )
+"#,
+    }
+    .toml()
 }
 
 fn strategies_agree(half: f32, roughness: f32, spp_light: u32, spp_bsdf: u32, spp_mis: u32) {

@@ -39,42 +39,26 @@ fn room_mean_is_the_same_with_1_and_16_shadow_rays() {
 
 /// A box with a large ceiling light, a mirror and a glass sphere, where brute-force path
 /// tracing converges in reasonable time.
-const BOX: &str = r#"
-[camera]
-eye = [0, -3.5, 0]
-look_at = [0, 0, 0]
-vfov = 60
-[materials]
+fn mirror_glass_box() -> String {
+    BoxScene {
+        camera: "eye = [0, -3.5, 0]\nlook_at = [0, 0, 0]\nvfov = 60",
+        materials: r#"
 white = { type = "diffuse", albedo = [0.7, 0.7, 0.7] }
 red = { type = "diffuse", albedo = [0.7, 0.1, 0.1] }
 mirror = { type = "mirror", tint = [0.9, 0.9, 0.9] }
 glass = { type = "dielectric", ior = 1.5 }
-black = { type = "diffuse", albedo = [0, 0, 0] }
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,-1,-1],[1,-1,-1],[1,1,-1],[-1,1,-1]]
-[[shape]]
-type = "quad"
-material = "red"
-vertices = [[-1,-1,-1],[-1,1,-1],[-1,1,1],[-1,-1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[1,-1,-1],[1,-1,1],[1,1,1],[1,1,-1]]
-[[shape]]
-type = "quad"
-material = "white"
-vertices = [[-1,-1,1],[-1,1,1],[1,1,1],[1,-1,1]]
-[[shape]]
-type = "quad"
-material = "black"
-emission = [4, 4, 4]
-vertices = [[-0.6,-0.6,0.99],[-0.6,0.6,0.99],[0.6,0.6,0.99],[0.6,-0.6,0.99]]
+black = { type = "diffuse", albedo = [0, 0, 0] }"#,
+        walls: [
+            Some("white"),
+            Some("red"),
+            Some("white"),
+            Some("white"),
+            Some("white"),
+            None,
+        ],
+        light_half: 0.6,
+        light_radiance: 4.0,
+        extra_shapes: r#"
 [[shape]]
 type = "sphere"
 material = "glass"
@@ -85,11 +69,14 @@ type = "sphere"
 material = "mirror"
 center = [-0.4, 0.4, -0.6]
 radius = 0.35
-"#;
+"#,
+    }
+    .toml()
+}
 
 #[test]
 fn next_event_estimation_matches_brute_force_path_tracing() {
-    let scene = scene_from_toml(BOX);
+    let scene = scene_from_toml(&mirror_glass_box());
     let base = RenderSettings {
         width: 48,
         height: 48,

@@ -122,3 +122,60 @@ pub fn assert_agree(
         );
     }
 }
+
+/// A test scene in the box [-1, 1]^3: a TOML scene file with a camera, the given
+/// `[materials]` lines, one quad per wall named in `walls` (floor, left, back, right,
+/// ceiling, front; `None` leaves the wall out, opening the box), a square ceiling light of
+/// half-width `light_half` and radiance `light_radiance` (material `black`, which
+/// `materials` must define) just below the ceiling, and `extra_shapes` (TOML `[[shape]]`
+/// tables) after them.
+pub struct BoxScene<'a> {
+    /// The `[camera]` table's body.
+    pub camera: &'a str,
+    /// The `[materials]` table's body.
+    pub materials: &'a str,
+    /// Material of each wall: floor (z = -1), left (x = -1), back (y = 1), right (x = 1),
+    /// ceiling (z = 1), front (y = -1); all face into the box.
+    pub walls: [Option<&'a str>; 6],
+    /// Half-width of the square light.
+    pub light_half: f32,
+    /// Radiance of the light (grey).
+    pub light_radiance: f32,
+    /// More `[[shape]]` tables.
+    pub extra_shapes: &'a str,
+}
+
+/// The camera most box tests use: from the front, a little above the middle.
+pub const BOX_CAMERA: &str = "eye = [0, -0.9, 0.3]\nlook_at = [0, 0.5, -0.6]\nvfov = 75";
+
+impl BoxScene<'_> {
+    /// The scene file's text.
+    pub fn toml(&self) -> String {
+        const WALLS: [&str; 6] = [
+            "[[-1,-1,-1],[1,-1,-1],[1,1,-1],[-1,1,-1]]",
+            "[[-1,-1,-1],[-1,1,-1],[-1,1,1],[-1,-1,1]]",
+            "[[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]]",
+            "[[1,-1,-1],[1,-1,1],[1,1,1],[1,1,-1]]",
+            "[[-1,-1,1],[-1,1,1],[1,1,1],[1,-1,1]]",
+            "[[-1,-1,-1],[-1,-1,1],[1,-1,1],[1,-1,-1]]",
+        ];
+        let mut text = format!(
+            "\n[camera]\n{}\n[materials]\n{}\n",
+            self.camera.trim(),
+            self.materials.trim()
+        );
+        for (material, vertices) in self.walls.iter().zip(WALLS) {
+            if let Some(material) = material {
+                text += &format!(
+                    "[[shape]]\ntype = \"quad\"\nmaterial = \"{material}\"\nvertices = {vertices}\n"
+                );
+            }
+        }
+        let (h, l) = (self.light_half, self.light_radiance);
+        text += &format!(
+            "[[shape]]\ntype = \"quad\"\nmaterial = \"black\"\nemission = [{l}, {l}, {l}]\n\
+             vertices = [[-{h},-{h},0.99],[-{h},{h},0.99],[{h},{h},0.99],[{h},-{h},0.99]]\n"
+        );
+        text + self.extra_shapes.trim_start()
+    }
+}

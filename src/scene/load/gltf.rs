@@ -4,8 +4,11 @@
 //!
 //! Each triangle primitive becomes one entity (`Name` = its node's name) with a [`Mesh`] in
 //! node space and the node's world [`Transform`]; cameras become [`Camera`]s in world space;
-//! `KHR_lights_punctual` lights become [`PunctualLight`]s. The material mapping is the one
-//! documented in the README (mirror, glass, emitter, else Lambertian).
+//! `KHR_lights_punctual` lights become [`PunctualLight`]s. Every material becomes
+//! [`Material::MetallicRoughness`] with the file's factors (and `KHR_materials_specular`,
+//! `_ior`, `_transmission`), its textures a [`MaterialTextures`] (with `TANGENT` data as
+//! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
+//! documents the mapping.
 
 use super::{Scene, SceneDefaults, UpAxis, check_mesh};
 use crate::error::{Error, Result};
