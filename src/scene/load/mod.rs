@@ -8,6 +8,7 @@
 
 mod gltf;
 mod obj;
+mod obj_check;
 mod place;
 mod scene_file;
 
