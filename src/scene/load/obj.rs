@@ -151,6 +151,11 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             uvs: if uvs.len() == n { uvs } else { Vec::new() },
             indices,
         };
+        if mesh.positions.iter().any(|p| !p.is_finite())
+            && let Some((line, message)) = obj_check::non_finite_vertex(&text)
+        {
+            return Err(Error::input(path, Some(format!("line {line}")), message));
+        }
         check_mesh(path, &format!("object '{name}'"), &mesh)?;
         let entity = world.spawn((Name(name), transform, mesh, material));
         if let Some(e) = emitter {

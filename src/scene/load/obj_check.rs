@@ -14,6 +14,7 @@
 /// past the last element of the file; `v/vt/vn` has at most three parts.
 pub(super) fn face_lines(text: &str) -> Result<Vec<u32>, (usize, String)> {
     const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    const PLURALS: [&str; 3] = ["vertices", "texture coordinates", "normals"];
     let mut counts = [0usize; 3];
     // Largest positive index of each kind, and its line (checked once the totals are known).
     let mut largest = [(0usize, 0usize); 3];
@@ -83,9 +84,13 @@ pub(super) fn face_lines(text: &str) -> Result<Vec<u32>, (usize, String)> {
             return Err((
                 number,
                 format!(
-                    "face: {what} index {index} out of range (the file has {} {what}{})",
+                    "face: {what} index {index} out of range (the file has {} {})",
                     counts[kind],
-                    if counts[kind] == 1 { "" } else { "s" }
+                    if counts[kind] == 1 {
+                        what
+                    } else {
+                        PLURALS[kind]
+                    }
                 ),
             ));
         }
@@ -151,6 +156,24 @@ pub(super) fn explain(text: &str, error: &tobj::LoadError) -> Option<(usize, Str
     None
 }
 
+/// The first `v` line whose x, y or z is not finite (`nan`, `inf`, or beyond the f32 range),
+/// as (line, message).
+pub(super) fn non_finite_vertex(text: &str) -> Option<(usize, String)> {
+    text.lines().enumerate().find_map(|(i, line)| {
+        let mut words = line.split_whitespace();
+        if words.next() != Some("v") {
+            return None;
+        }
+        let xyz: Vec<f32> = words.take(3).filter_map(|w| w.parse().ok()).collect();
+        match xyz[..] {
+            [x, y, z] if !(x.is_finite() && y.is_finite() && z.is_finite()) => {
+                Some((i + 1, format!("vertex ({x}, {y}, {z}) is not finite")))
+            }
+            _ => None,
+        }
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -186,6 +209,16 @@ mod tests {
         assert!(message.contains("more than three"));
         // forward references are allowed, as tobj allows them
         assert!(face_lines("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").is_ok());
+    }
+
+    #[test]
+    fn non_finite_vertices_are_found() {
+        let text = "v 0 0 0\nvn nan 0 0\nv 1 0 0\nv 0 1e39 0\nv nan 0 0\n";
+        assert_eq!(
+            non_finite_vertex(text),
+            Some((4, "vertex (0, inf, 0) is not finite".into()))
+        );
+        assert_eq!(non_finite_vertex("v 0 0 0\n"), None);
     }
 
     #[test]
