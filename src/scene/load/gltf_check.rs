@@ -34,6 +34,12 @@ pub(super) fn check_glb(path: &Path, bytes: &[u8]) -> Result<()> {
         ));
     }
     let length = word(8) as usize;
+    // gltf 1.4.1 subtracts the header size from this length unchecked (found by fuzzing).
+    if length < GLB_HEADER {
+        return fail(format!(
+            "the GLB header gives a length of {length} bytes, less than the header itself"
+        ));
+    }
     if length > bytes.len() {
         return fail(format!(
             "truncated: the GLB header gives a length of {length} bytes, the file has {}",
@@ -352,6 +358,9 @@ mod tests {
         let e = message(&short_chunk[..good.len() - 3]);
         assert!(e.contains("chunk 1 (\"BIN\\0\") needs bytes"), "{e}");
         assert!(message(b"glTF\x02\0").contains("less than the 12-byte GLB header"));
+        let mut short_length = good.clone();
+        short_length[8..12].copy_from_slice(&11u32.to_le_bytes());
+        assert!(message(&short_length).contains("less than the header itself"));
         assert!(message(b"{\"asset\": 1}").contains("instead of the magic"));
         let mut v1 = good.clone();
         v1[4] = 1;
