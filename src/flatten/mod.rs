@@ -109,6 +109,16 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             "the camera's position or orientation is not finite",
         ));
     }
+    if !(camera.vfov > 0.0 && camera.vfov < std::f32::consts::PI) {
+        return Err(Error::input(
+            path,
+            Some("camera".into()),
+            format!(
+                "the field of view must lie in (0, 180) degrees, got {}",
+                camera.vfov.to_degrees()
+            ),
+        ));
+    }
 
     let mut materials: Vec<(Bsdf, SurfaceTextures)> = Vec::new();
     let mut interner = TextureInterner::default();
@@ -175,8 +185,9 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             },
         )?;
         if skipped > 0 {
+            let kind = if emitter.is_some() { " emitting" } else { "" };
             warnings.push(format!(
-                "mesh '{name}': skipped {skipped} degenerate (zero-area) triangles"
+                "mesh '{name}': skipped {skipped} degenerate (zero-area){kind} triangles"
             ));
         }
     }
@@ -466,6 +477,16 @@ fn flatten_mesh(
         .iter()
         .map(|&p| world_from_object.transform_point3a(p.into()))
         .collect();
+    if let Some(bad) = world.iter().position(|p| !p.is_finite()) {
+        return Err(Error::input(
+            path,
+            at(),
+            format!(
+                "vertex {bad} {} overflows when transformed to world space",
+                mesh.positions[bad]
+            ),
+        ));
+    }
     let mut skipped = 0;
     for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
         if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
@@ -478,7 +499,22 @@ fn flatten_mesh(
         let [a, b, c] = if flips { [a, c, b] } else { [a, b, c] };
         let geom = TriangleGeom::new(world[a as usize], world[b as usize], world[c as usize]);
         let double_area = geom.normal_unnormalized().length();
-        if !(double_area > 0.0) || !double_area.is_finite() {
+        if !double_area.is_finite() {
+            // Finite vertices, but far enough apart (~1e19) that the area overflows f32: the
+            // triangle cannot be intersected or sampled, and skipping it would change the image.
+            return Err(Error::input(
+                path,
+                at(),
+                format!(
+                    "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
+                     are too far apart (scale the model down)",
+                    Vec3::from(world[a as usize]),
+                    Vec3::from(world[b as usize]),
+                    Vec3::from(world[c as usize])
+                ),
+            ));
+        }
+        if !(double_area > 0.0) {
             skipped += 1;
             continue;
         }

@@ -10,7 +10,7 @@
 //! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
 //! documents the mapping.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh};
+use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
@@ -53,8 +53,16 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         action: "cannot read",
         source,
     })?;
-    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes)
-        .map_err(|e| Error::input(path, None, format!("not a valid glTF file: {e}")))?;
+    if gltf_check::path_is_glb(path) || bytes.starts_with(b"glTF") {
+        gltf_check::check_glb(path, &bytes)?;
+    }
+    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| match e {
+        gltf::Error::Deserialize(e) => match gltf::binary::Glb::from_slice(&bytes) {
+            Ok(glb) => gltf_check::json_error(path, &glb.json, true, &e),
+            Err(_) => gltf_check::json_error(path, &bytes, false, &e),
+        },
+        other => Error::input(path, None, format!("not a valid glTF file: {other}")),
+    })?;
     for ext in unchecked.extensions_required() {
         if !SUPPORTED_REQUIRED.contains(&ext) {
             return Err(Error::input(
@@ -93,7 +101,6 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     };
     // gltf-json 1.4.1's validation reads a primitive's POSITION accessor before checking that
     // it exists, and panics when it does not (found by fuzzing): check that first.
-    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes).map_err(gltf_error)?;
     let json = unchecked.document.into_json();
     for (m, mesh) in json.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
@@ -122,8 +129,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     };
     let base = path.parent().unwrap_or(Path::new("."));
     let gltf::Gltf { document, blob } = gltf;
-    let buffers = gltf::import_buffers(&document, Some(base), blob)
-        .map_err(|e| Error::input(path, None, format!("cannot load buffer data: {e}")))?;
+    let buffers = gltf_check::import_buffers(path, &document, base, blob)?;
+    gltf_check::check_ranges(path, &document)?;
 
     let mut warnings = Vec::new();
     let textures = import_textures(&document, base, &buffers, path)?;
@@ -211,6 +218,9 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         if let Some(camera) = node.camera() {
             match camera.projection() {
                 gltf::camera::Projection::Perspective(p) => {
+                    gltf_check::check_perspective(&p).map_err(|message| {
+                        Error::input(path, Some(node_location(&node)), message)
+                    })?;
                     world.spawn((Name(name.clone()), camera_of(&world_from_node, &p)));
                 }
                 gltf::camera::Projection::Orthographic(_) => warnings.push(format!(

@@ -7,7 +7,9 @@
 //! exporters do: a Blender export comes back in Blender's own coordinates.
 
 mod gltf;
+mod gltf_check;
 mod obj;
+mod obj_check;
 mod place;
 mod scene_file;
 

@@ -7,7 +7,7 @@
 //! metallic-roughness, `Ke` -> one-sided emitter, `illum 3` or a mirror-like `Ks` with high
 //! `Ns` -> mirror, `illum 4/6/7` or `d`/`Tr` transparency -> glass of index `Ni`.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh};
+use super::{Scene, SceneDefaults, UpAxis, check_mesh, obj_check};
 use crate::error::{Error, Result};
 use crate::math::{Rgb, Vec2, Vec3};
 use crate::scene::{
@@ -36,6 +36,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         ignore_lines: true,
         ..Default::default()
     };
+    // Line number (1-based) of every polygon, in file order, to name faces in messages; this
+    // also refuses face indices that tobj would mishandle.
+    let face_lines = obj_check::face_lines(&text)
+        .map_err(|(line, message)| Error::input(path, Some(format!("line {line}")), message))?;
     let mut mtl_names: Vec<PathBuf> = Vec::new();
     let mtl_names_cell = std::cell::RefCell::new(&mut mtl_names);
     let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
@@ -43,12 +47,13 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         mtl_names_cell.borrow_mut().push(full.clone());
         load_mtl_checked(&full)
     })
-    .map_err(|e| {
-        Error::input(
+    .map_err(|e| match obj_check::explain(&text, &e) {
+        Some((line, message)) => Error::input(path, Some(format!("line {line}")), message),
+        None => Error::input(
             path,
             first_failing_line(&text, &options).map(|l| format!("line {l}")),
             format!("cannot parse OBJ: {e}"),
-        )
+        ),
     })?;
     let mut warnings = Vec::new();
     let materials = match materials {
@@ -63,17 +68,6 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             Vec::new()
         }
     };
-
-    // Line number (1-based) of every face, in file order, to name faces in messages.
-    let face_lines: Vec<usize> = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| {
-            let l = l.trim_start();
-            l.starts_with("f ") || l.starts_with("f\t")
-        })
-        .map(|(i, _)| i + 1)
-        .collect();
 
     let mut texture_cache: HashMap<PathBuf, Option<Arc<Texture>>> = HashMap::new();
     let imported: Vec<(Material, Option<Emitter>, Option<Arc<Texture>>)> = materials
@@ -125,7 +119,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         for &arity in &arities {
             let polygon = &m.indices[start..start + arity as usize];
             start += arity as usize;
-            let line = face_lines.get(face_counter).copied();
+            let line = face_lines.get(face_counter).map(|&l| l as usize);
             face_counter += 1;
             if let Some(&bad) = polygon.iter().find(|&&i| i as usize >= n) {
                 return Err(face_error(
@@ -159,6 +153,11 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             uvs: if uvs.len() == n { uvs } else { Vec::new() },
             indices,
         };
+        if mesh.positions.iter().any(|p| !p.is_finite())
+            && let Some((line, message)) = obj_check::non_finite_vertex(&text)
+        {
+            return Err(Error::input(path, Some(format!("line {line}")), message));
+        }
         check_mesh(path, &format!("object '{name}'"), &mesh)?;
         let entity = world.spawn((Name(name), transform, mesh, material));
         if let Some(e) = emitter {

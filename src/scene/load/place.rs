@@ -132,14 +132,39 @@ pub(super) fn ensure_camera(world: &mut hecs::World, path: &Path) -> Result<()> 
     }
     let (lo, hi) = bounding_box(world)
         .ok_or_else(|| Error::input(path, None, "the file has no camera and no geometry"))?;
-    let centre = (lo + hi) * 0.5;
-    let radius = ((hi - lo).length() * 0.5).max(1e-3);
+    // In f64: a box near the f32 range still has a centre and size, and the eye's overflow
+    // (a model too large for the f32 world) is then told as such.
+    let (lo64, hi64) = (lo.as_dvec3(), hi.as_dvec3());
+    let centre = (lo64 + hi64) * 0.5;
+    let radius = ((hi64 - lo64).length() * 0.5).max(1e-3);
     let vfov = 40f32.to_radians();
-    let distance = radius / (vfov * 0.5).sin() * 1.05;
-    let direction = Vec3::new(0.5, -1.0, 0.6).normalize();
+    let distance = radius / (f64::from(vfov) * 0.5).sin() * 1.05;
+    let direction = glam::DVec3::new(0.5, -1.0, 0.6).normalize();
+    let eye = (centre + direction * distance).as_vec3();
+    let centre = centre.as_vec3();
+    if !(eye.is_finite() && centre.is_finite()) {
+        return Err(Error::input(
+            path,
+            None,
+            format!(
+                "the file has no camera, and its bounding box {lo} .. {hi} is too large to \
+                 frame with one"
+            ),
+        ));
+    }
+    // The view direction is known exactly; `look_at` would subtract eye and centre, which
+    // can overflow for such large boxes.
+    let forward = -direction.as_vec3();
+    let right = forward.cross(Vec3::Z).normalize();
     world.spawn((
         Name("framing camera".into()),
-        Camera::look_at(centre + direction * distance, centre, Vec3::Z, vfov),
+        Camera {
+            eye,
+            forward,
+            up: right.cross(forward),
+            vfov,
+            aspect_ratio: None,
+        },
     ));
     Ok(())
 }
