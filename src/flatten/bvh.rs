@@ -15,7 +15,6 @@ use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use rayon::prelude::*;
-use std::time::Duration;
 
 /// Largest supported depth of the 4-wide tree; the traversal stack holds `3 * MAX_DEPTH + 1` entries.
 pub const MAX_DEPTH: usize = 64;
@@ -77,12 +76,40 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
         }
     };
     let aabbs: Vec<Aabb> = shapes.par_iter().map(Shape::aabb).collect();
-    let bvh2 = obvhs::bvh2::builder::build_bvh2(&aabbs, params, &mut Duration::default());
+    let bvh2 = build_bvh2(&aabbs, params);
     let mut bvh = Bvh4::default();
     if !shapes.is_empty() {
         bvh.depth = collapse(&bvh2, &[0], &mut bvh.nodes);
     }
     (bvh.depth <= MAX_DEPTH).then(|| (bvh, bvh2.primitive_indices))
+}
+
+/// The binary BVH: obvhs's PLOC build, reinsertion and leaf collapse, the steps of its
+/// `build_bvh2` without the validation that build runs with debug assertions on: that one
+/// panics on trees deeper than 96, which degenerate input can make, while [`build_bvh`]
+/// refuses such trees with an error in every build.
+fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
+    let indices = (0..aabbs.len() as u32).collect();
+    let mut bvh2 = obvhs::ploc::PlocBuilder::with_capacity(aabbs.len()).build(
+        params.ploc_search_distance,
+        aabbs,
+        indices,
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    let mut reinsertion = obvhs::bvh2::reinsertion::ReinsertionOptimizer::default();
+    reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    obvhs::bvh2::leaf_collapser::collapse(
+        &mut bvh2,
+        params.max_prims_per_leaf,
+        params.collapse_traversal_cost,
+    );
+    reinsertion.run(
+        &mut bvh2,
+        params.reinsertion_batch_ratio * params.post_collapse_reinsertion_batch_ratio_multiplier,
+        None,
+    );
+    bvh2
 }
 
 /// Appends the 4-wide node made of the binary nodes `children` (expanded until there are
