@@ -1,5 +1,6 @@
 //! A large OBJ (a 750 x 750 vertex grid: about 1.1 million lines, 1.1 million triangles,
-//! written here) loads and flattens through the library in bounded time and memory.
+//! written here) loads and flattens through the library in bounded memory. Its time is a
+//! figure for benchmarks and the closing notes, not a pass/fail limit: it is printed.
 //!
 //! The memory bound is stated per triangle: the process's peak resident size (VmHWM, Linux)
 //! may grow by at most `BYTES_PER_TRIANGLE` per triangle plus `FIXED_BYTES` while the file is
@@ -9,13 +10,11 @@
 //! This file is its own test binary, so no other test shares the process's peak.
 
 use std::io::Write;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 const SIDE: usize = 750;
 const BYTES_PER_TRIANGLE: u64 = 600;
 const FIXED_BYTES: u64 = 64 << 20;
-/// Generous: about 3 s on one free core; CI machines are shared.
-const TIME_LIMIT: Duration = Duration::from_secs(60);
 
 /// Peak resident set size of this process in bytes, from /proc/self/status.
 fn peak_rss() -> Option<u64> {
@@ -55,10 +54,6 @@ fn a_million_line_obj_loads_in_bounded_time_and_memory() {
     let after = peak_rss();
     // The room's own primitives come with the grid.
     assert!(flat.shapes.len() >= triangles, "{}", flat.shapes.len());
-    assert!(
-        elapsed < TIME_LIMIT,
-        "{triangles} triangles took {elapsed:?}"
-    );
     if let (Some(before), Some(after)) = (before, after) {
         let grown = after.saturating_sub(before);
         let bound = BYTES_PER_TRIANGLE * triangles as u64 + FIXED_BYTES;
