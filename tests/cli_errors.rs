@@ -2,6 +2,9 @@
 //! must end with exit code 1 (2 for a usage error), one `error:` line on stderr that names the
 //! file, the place in it and the problem, no panic, and no output file created or changed.
 
+mod common;
+use common::{check_failure, files_in};
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -55,32 +58,6 @@ fn assert_fails(out: &Output, code: i32, fragments: &[&str]) {
     if let Err(problem) = check_failure(out, code, fragments) {
         panic!("{problem}");
     }
-}
-
-fn check_failure(out: &Output, code: i32, fragments: &[&str]) -> Result<(), String> {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let errors = stderr.lines().filter(|l| l.starts_with("error:")).count();
-    let problem = if out.status.code() != Some(code) {
-        format!("exit code {:?}, not {code}", out.status.code())
-    } else if stderr.contains("panicked") || stderr.contains("backtrace") {
-        "a panic".into()
-    } else if errors != 1 || (code == 1 && stderr.lines().count() != 1) {
-        "not exactly one error line".into()
-    } else if let Some(missing) = fragments.iter().find(|f| !stderr.contains(*f)) {
-        format!("'{missing}' missing")
-    } else {
-        return Ok(());
-    };
-    Err(format!("{problem} in: {stderr}"))
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 struct Case {

@@ -5,6 +5,9 @@
 //! panic, and no output file. The warning cases (degenerate triangles, zero-area emitters, a
 //! missing `.mtl`) must render, say so on stderr, and write an image without NaN.
 
+mod common;
+use common::{check_failure, files_in};
+
 use serde_json::{Value, json};
 use std::path::Path;
 use std::process::{Command, Output};
@@ -24,33 +27,6 @@ fn render(scene: &Path, output: &Path) -> Output {
         .arg(output)
         .output()
         .expect("the binary runs")
-}
-
-/// `Err` unless the run failed with exit code 1 and exactly one stderr line, an `error:`
-/// line without panic that contains every fragment.
-fn check_failure(out: &Output, fragments: &[&str]) -> Result<(), String> {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let problem = if out.status.code() != Some(1) {
-        format!("exit code {:?}, not 1", out.status.code())
-    } else if stderr.contains("panicked") || stderr.contains("backtrace") {
-        "a panic".into()
-    } else if stderr.lines().count() != 1 || !stderr.starts_with("error: ") {
-        "not exactly one error line".into()
-    } else if let Some(missing) = fragments.iter().find(|f| !stderr.contains(*f)) {
-        format!("'{missing}' missing")
-    } else {
-        return Ok(());
-    };
-    Err(format!("{problem} in: {stderr}"))
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 // ---------------------------------------------------------------------------------------
@@ -407,7 +383,7 @@ fn broken_models_fail_with_one_clear_message_and_no_output() {
             };
             let mut expect = vec![named];
             expect.extend_from_slice(&case.expect);
-            if let Err(problem) = check_failure(&out, &expect) {
+            if let Err(problem) = check_failure(&out, 1, &expect) {
                 failures.push(format!("{}: {problem}", input.display()));
             }
         }

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 use std::path::Path;
+use std::process::Output;
 use wavetrace::{
     FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render,
     scene::load::load_scene_str,
@@ -178,4 +179,34 @@ impl BoxScene<'_> {
         );
         text + self.extra_shapes.trim_start()
     }
+}
+
+/// `Err` unless the run exited with `code` without a panic, printed exactly one `error:` line
+/// (and nothing else for exit code 1, where clap's usage text cannot follow) containing every
+/// fragment.
+pub fn check_failure(out: &Output, code: i32, fragments: &[&str]) -> Result<(), String> {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let errors = stderr.lines().filter(|l| l.starts_with("error:")).count();
+    let problem = if out.status.code() != Some(code) {
+        format!("exit code {:?}, not {code}", out.status.code())
+    } else if stderr.contains("panicked") || stderr.contains("backtrace") {
+        "a panic".into()
+    } else if errors != 1 || (code == 1 && stderr.lines().count() != 1) {
+        "not exactly one error line".into()
+    } else if let Some(missing) = fragments.iter().find(|f| !stderr.contains(*f)) {
+        format!("'{missing}' missing")
+    } else {
+        return Ok(());
+    };
+    Err(format!("{problem} in: {stderr}"))
+}
+
+/// The names of the files in `dir`, sorted.
+pub fn files_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
