@@ -4,9 +4,10 @@
 //! Crashes become regression tests in tests/fuzz_regressions.rs.
 #![no_main]
 
+mod common;
+
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
-use wavetrace::{Flow, RenderSettings};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {
@@ -18,15 +19,5 @@ fuzz_target!(|data: &[u8]| {
     let Ok(scene) = wavetrace::scene::load_scene_str(path, text) else {
         return;
     };
-    let Ok(flat) = wavetrace::flatten(&scene.world, path) else {
-        return;
-    };
-    let settings = RenderSettings {
-        width: 3,
-        height: 2,
-        spp: 1,
-        max_depth: 16,
-        ..Default::default()
-    };
-    let _ = wavetrace::render(&flat, &settings, |_| Flow::Continue);
+    common::flatten_and_render(&scene, path);
 });
