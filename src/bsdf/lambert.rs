@@ -6,23 +6,48 @@ use std::f32::consts::FRAC_1_PI;
 
 use super::BsdfSample;
 
+/// f / albedo and the density, from the directions' z components alone: `(1 / pi, cos / pi)`
+/// on the same side, zeros otherwise. Scalar, branch-free code that lane loops vectorise.
+#[inline(always)]
+fn eval_and_pdf(wo_z: f32, wi_z: f32) -> (f32, f32) {
+    let same_side = wo_z * wi_z > 0.0;
+    (
+        if same_side { FRAC_1_PI } else { 0.0 },
+        if same_side {
+            cosine_hemisphere_pdf(wi_z.abs())
+        } else {
+            0.0
+        },
+    )
+}
+
 /// f(wo, wi): albedo / pi when both directions are on the same side.
 #[inline]
 pub fn eval(albedo: Rgb, wo: Vec3A, wi: Vec3A) -> Rgb {
-    if wo.z * wi.z > 0.0 {
-        albedo * FRAC_1_PI
-    } else {
-        Rgb::ZERO
-    }
+    albedo * eval_and_pdf(wo.z, wi.z).0
 }
 
 /// Cosine-weighted density on the side of `wo`.
 #[inline]
 pub fn pdf(wo: Vec3A, wi: Vec3A) -> f32 {
-    if wo.z * wi.z > 0.0 {
-        cosine_hemisphere_pdf(wi.z.abs())
-    } else {
-        0.0
+    eval_and_pdf(wo.z, wi.z).1
+}
+
+/// [`eval`] and [`pdf`] of every lane of `wi_z` (the directions' z components), in one pass.
+#[inline]
+pub fn eval_and_pdf_lanes<const L: usize>(
+    albedo: Rgb,
+    wo_z: f32,
+    wi_z: &[f32; L],
+    f: &mut [Rgb; L],
+    pdf: &mut [f32; L],
+) {
+    let mut f_over_albedo = [0.0; L];
+    for k in 0..L {
+        (f_over_albedo[k], pdf[k]) = eval_and_pdf(wo_z, wi_z[k]);
+    }
+    for (f, scale) in f.iter_mut().zip(f_over_albedo) {
+        *f = albedo * scale;
     }
 }
 

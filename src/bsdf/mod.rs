@@ -150,6 +150,26 @@ impl Bsdf {
         }
     }
 
+    /// [`Bsdf::eval`] and [`Bsdf::pdf`] of `L` directions at once, given by axis (structure
+    /// of arrays). Lambertian surfaces, the common case, take all lanes in one vectorised
+    /// pass; the others go lane by lane.
+    #[inline]
+    pub fn eval_and_pdf_lanes<const L: usize>(
+        &self,
+        wo: Vec3A,
+        wi: &[[f32; L]; 3],
+        f: &mut [Rgb; L],
+        pdf: &mut [f32; L],
+    ) {
+        if let Bsdf::Lambertian { albedo } = *self {
+            return lambert::eval_and_pdf_lanes(albedo, wo.z, &wi[2], f, pdf);
+        }
+        for k in 0..L {
+            let wi = Vec3A::new(wi[0][k], wi[1][k], wi[2][k]);
+            (f[k], pdf[k]) = (self.eval(wo, wi), self.pdf(wo, wi));
+        }
+    }
+
     /// Samples `wi` from `u_lobe` (lobe choice) and `u` (direction).
     #[inline]
     pub fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {

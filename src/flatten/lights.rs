@@ -125,25 +125,81 @@ impl DeltaLight {
     }
 }
 
-/// A light sample seen from a shading point.
-#[derive(Clone, Copy, Debug)]
-pub struct LightSample {
-    /// The point on the light (unused for directional lights).
-    pub point: Vec3A,
-    /// Unit direction from the shading point toward the light.
-    pub wi: Vec3A,
-    /// Distance to `point`; infinite for directional lights.
-    pub distance: f32,
-    /// Incident radiance over the sample's density, per unit of `|cos|` at the receiver: the
-    /// estimate is `f * |ns . wi| * weight`. Zero when the light does not shine toward the point.
-    pub weight: Rgb,
-    /// Density of `wi` per solid angle (choice of the light included), for multiple importance
-    /// sampling; infinite for punctual lights, which BSDF sampling can never find.
-    pub pdf_solid_angle: f32,
+/// Light samples per shading point are taken in groups of this many lanes.
+pub const LIGHT_LANES: usize = 16;
+
+/// Up to [`LIGHT_LANES`] light samples seen from one shading point, as structure of arrays:
+/// choosing the lights and the points is scalar, but the geometry of all lanes (direction,
+/// distance, density) is one pass of independent lanes that compiles to SIMD.
+#[derive(Clone, Debug)]
+pub struct LightSamples {
+    /// Lanes in use.
+    pub len: usize,
+    /// Unit direction from the shading point toward the light, by axis.
+    pub wi: [[f32; LIGHT_LANES]; 3],
+    /// Distance to the light point; infinite for directional lights.
+    pub distance: [f32; LIGHT_LANES],
+    /// Radiance of an area light, or the weight of a punctual light.
+    pub radiance: [Rgb; LIGHT_LANES],
+    /// Incident radiance over the sample's density, per unit of `|cos|` at the receiver, is
+    /// `radiance * scale`; zero when the light does not shine toward the point.
+    pub scale: [f32; LIGHT_LANES],
+    /// Density of `wi` per solid angle (choice of the light included), for multiple
+    /// importance sampling; infinite for punctual lights, which BSDF sampling never finds.
+    pub pdf_solid_angle: [f32; LIGHT_LANES],
     /// Index of the area light sampled (into [`LightTable::lights`]), or [`NOT_AREA_LIGHT`].
-    pub area_light: u32,
-    /// Barycentrics of `point` on a triangle light (for its emission texture).
-    pub barycentric: Vec2,
+    pub area_light: [u32; LIGHT_LANES],
+    /// Barycentrics of the point on a triangle light (for its emission texture).
+    pub barycentric: [Vec2; LIGHT_LANES],
+    /// Inputs of the geometry pass: the point on the light, its normal, its area density,
+    /// and 1 where it emits on both sides, else 0 (numbers, not `bool`s: those keep the pass
+    /// from vectorising).
+    point: [[f32; LIGHT_LANES]; 3],
+    normal: [[f32; LIGHT_LANES]; 3],
+    pdf_area: [f32; LIGHT_LANES],
+    two_sided: [f32; LIGHT_LANES],
+}
+
+impl Default for LightSamples {
+    fn default() -> Self {
+        const ZEROS: [f32; LIGHT_LANES] = [0.0; LIGHT_LANES];
+        LightSamples {
+            len: 0,
+            wi: [ZEROS; 3],
+            distance: ZEROS,
+            radiance: [Rgb::ZERO; LIGHT_LANES],
+            scale: ZEROS,
+            pdf_solid_angle: ZEROS,
+            area_light: [NOT_AREA_LIGHT; LIGHT_LANES],
+            barycentric: [Vec2::ZERO; LIGHT_LANES],
+            point: [ZEROS; 3],
+            normal: [ZEROS; 3],
+            pdf_area: ZEROS,
+            two_sided: ZEROS,
+        }
+    }
+}
+
+impl LightSamples {
+    /// Direction of lane `k`.
+    #[inline(always)]
+    pub fn wi(&self, k: usize) -> Vec3A {
+        Vec3A::new(self.wi[0][k], self.wi[1][k], self.wi[2][k])
+    }
+
+    /// Incident radiance over density of lane `k` (see [`LightSamples::scale`]).
+    #[inline(always)]
+    pub fn weight(&self, k: usize) -> Rgb {
+        self.radiance[k] * self.scale[k]
+    }
+}
+
+/// What a punctual light sends toward a point: the direction to it, its distance and the
+/// incident radiance over the probability of choosing the light.
+struct PunctualSample {
+    wi: Vec3A,
+    distance: f32,
+    weight: Rgb,
 }
 
 /// [`LightSample::area_light`] of a punctual light.
@@ -203,51 +259,97 @@ impl LightTable {
         self.power_cdf.is_empty()
     }
 
-    /// Chooses a light with `u_pick` and a point on it with `u`, as seen from `p`.
+    /// Fills `samples` with `uniforms.len()` (at most [`LIGHT_LANES`]) light samples as seen
+    /// from `p`: lane `k` chooses a light with `uniforms[k].0` and a point on it with
+    /// `uniforms[k].1` (area lights: uniform by area).
     #[inline]
-    pub fn sample(&self, p: Vec3A, u_pick: f32, u: Vec2) -> LightSample {
-        let index = sample_discrete(&self.power_cdf, u_pick);
-        let Some(light) = self.lights.get(index) else {
-            return self.delta_lights[index - self.lights.len()].sample_from(p);
-        };
-        let (point, normal, barycentric) = match light.shape {
-            Shape::Triangle(t) => {
-                let b = sample_triangle(u);
-                (t.point(b), light.normal, b)
+    pub fn sample(&self, p: Vec3A, uniforms: &[(f32, Vec2)], samples: &mut LightSamples) {
+        debug_assert!(uniforms.len() <= LIGHT_LANES);
+        samples.len = uniforms.len();
+        let mut punctual = 0u32;
+        for (k, &(u_pick, u)) in uniforms.iter().enumerate() {
+            let index = sample_discrete(&self.power_cdf, u_pick);
+            let Some(light) = self.lights.get(index) else {
+                punctual |= 1 << k; // done after the geometry pass, which overwrites every lane
+                continue;
+            };
+            let (point, normal, barycentric) = match light.shape {
+                Shape::Triangle(t) => {
+                    let b = sample_triangle(u);
+                    (t.point(b), light.normal, b)
+                }
+                Shape::Sphere(s) => {
+                    let n = sample_uniform_sphere(u);
+                    (s.center + s.radius * n, n, Vec2::ZERO)
+                }
+            };
+            for axis in 0..3 {
+                samples.point[axis][k] = point[axis];
+                samples.normal[axis][k] = normal[axis];
             }
-            Shape::Sphere(s) => {
-                let n = sample_uniform_sphere(u);
-                (s.center + s.radius * n, n, Vec2::ZERO)
-            }
-        };
-        let to_light = point - p;
-        let distance_squared = to_light.length_squared();
-        let distance = distance_squared.sqrt();
-        let wi = to_light / distance;
-        let cos_light = -normal.dot(wi);
-        let shines = cos_light > 0.0 || (light.two_sided && cos_light < 0.0);
-        let pdf_solid_angle = light.pdf_area * distance_squared / cos_light.abs();
-        let weight = if shines && distance_squared > 0.0 {
-            light.radiance * pdf_solid_angle.recip()
-        } else {
-            Rgb::ZERO
-        };
-        LightSample {
-            point,
-            wi,
-            distance,
-            weight,
-            pdf_solid_angle,
-            area_light: index as u32,
-            barycentric,
+            samples.pdf_area[k] = light.pdf_area;
+            samples.two_sided[k] = if light.two_sided { 1.0 } else { 0.0 };
+            samples.radiance[k] = light.radiance;
+            samples.area_light[k] = index as u32;
+            samples.barycentric[k] = barycentric;
         }
+        area_light_geometry(p, samples);
+        while punctual != 0 {
+            let k = punctual.trailing_zeros() as usize;
+            punctual &= punctual - 1;
+            let index = sample_discrete(&self.power_cdf, uniforms[k].0);
+            let s = self.delta_lights[index - self.lights.len()].sample_from(p);
+            for axis in 0..3 {
+                samples.wi[axis][k] = s.wi[axis];
+            }
+            samples.distance[k] = s.distance;
+            samples.radiance[k] = s.weight;
+            samples.scale[k] = 1.0;
+            samples.pdf_solid_angle[k] = f32::INFINITY;
+            samples.area_light[k] = NOT_AREA_LIGHT;
+        }
+    }
+}
+
+/// The geometry pass of [`LightTable::sample`] over all lanes, area lights or not (unused
+/// lanes compute harmless garbage): no branches, no calls, so that it vectorises.
+#[inline(always)]
+fn area_light_geometry(p: Vec3A, s: &mut LightSamples) {
+    let [point_x, point_y, point_z] = &s.point;
+    let [normal_x, normal_y, normal_z] = &s.normal;
+    let [wi_x, wi_y, wi_z] = &mut s.wi;
+    for k in 0..LIGHT_LANES {
+        let (dx, dy, dz) = (point_x[k] - p.x, point_y[k] - p.y, point_z[k] - p.z);
+        let distance_squared = dx * dx + dy * dy + dz * dz;
+        let distance = distance_squared.sqrt();
+        let inverse_distance = 1.0 / distance;
+        (wi_x[k], wi_y[k], wi_z[k]) = (
+            dx * inverse_distance,
+            dy * inverse_distance,
+            dz * inverse_distance,
+        );
+        let cos_light = -(normal_x[k] * wi_x[k] + normal_y[k] * wi_y[k] + normal_z[k] * wi_z[k]);
+        // A one-sided light shines toward its normal; a two-sided one both ways.
+        let facing = if s.two_sided[k] > 0.0 {
+            cos_light.abs()
+        } else {
+            cos_light
+        };
+        let pdf_solid_angle = s.pdf_area[k] * distance_squared / cos_light.abs();
+        s.distance[k] = distance;
+        s.pdf_solid_angle[k] = pdf_solid_angle;
+        s.scale[k] = if facing > 0.0 && distance_squared > 0.0 {
+            1.0 / pdf_solid_angle
+        } else {
+            0.0
+        };
     }
 }
 
 impl DeltaLight {
     /// The light's sample as seen from `p` (there is only one direction to it).
     #[inline]
-    fn sample_from(&self, p: Vec3A) -> LightSample {
+    fn sample_from(&self, p: Vec3A) -> PunctualSample {
         let inv_p = 1.0 / self.select_probability;
         let towards = |position: Vec3A| {
             let to_light = position - p;
@@ -258,14 +360,10 @@ impl DeltaLight {
         match self.kind {
             DeltaKind::Point { position } => {
                 let (wi, distance, w) = towards(position);
-                LightSample {
-                    point: position,
+                PunctualSample {
                     wi,
                     distance,
                     weight: self.intensity * w,
-                    pdf_solid_angle: f32::INFINITY,
-                    area_light: NOT_AREA_LIGHT,
-                    barycentric: Vec2::ZERO,
                 }
             }
             DeltaKind::Spot {
@@ -277,24 +375,16 @@ impl DeltaLight {
                 let (wi, distance, w) = towards(position);
                 let cos = -wi.dot(direction);
                 let t = ((cos - cos_outer) / (cos_inner - cos_outer).max(1e-3)).clamp(0.0, 1.0);
-                LightSample {
-                    point: position,
+                PunctualSample {
                     wi,
                     distance,
                     weight: self.intensity * (w * t * t),
-                    pdf_solid_angle: f32::INFINITY,
-                    area_light: NOT_AREA_LIGHT,
-                    barycentric: Vec2::ZERO,
                 }
             }
-            DeltaKind::Directional { direction } => LightSample {
-                point: p - direction,
+            DeltaKind::Directional { direction } => PunctualSample {
                 wi: -direction,
                 distance: f32::INFINITY,
                 weight: self.intensity * inv_p,
-                pdf_solid_angle: f32::INFINITY,
-                area_light: NOT_AREA_LIGHT,
-                barycentric: Vec2::ZERO,
             },
         }
     }
@@ -304,6 +394,14 @@ impl DeltaLight {
 mod tests {
     use super::*;
     use crate::flatten::triangles::TriangleGeom;
+
+    /// One light sample seen from `p`: its point, direction, distance and weight.
+    fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
+        let mut s = LightSamples::default();
+        table.sample(p, &[(u_pick, u)], &mut s);
+        let wi = s.wi(0);
+        (p + s.distance[0] * wi, wi, s.distance[0], s.weight(0))
+    }
 
     #[test]
     fn lights_are_chosen_in_proportion_to_power() {
@@ -319,18 +417,15 @@ mod tests {
         // Second light (area 2, radiance 1, pdf_area = 0.5 / 2) seen from a point 1 above
         // its plane: weight = L cos / (d^2 pdf_area) with cos = 1 / d.
         let p = Vec3A::new(0.6, 0.6, 1.0);
-        let s = table.sample(p, 0.75, Vec2::new(0.3, 0.3));
-        let d = (s.point - p).length();
-        assert!(s.point.z == 0.0 && (s.distance - d).abs() < 1e-6);
+        let (point, _, distance, weight) = sample_one(&table, p, 0.75, Vec2::new(0.3, 0.3));
+        let d = (point - p).length();
+        assert!(point.z.abs() < 1e-6 && (distance - d).abs() < 1e-6);
         let expected = (1.0 / d) / (d * d * 0.25);
-        assert!(
-            (s.weight - Rgb::splat(expected)).length() < 1e-4,
-            "{}",
-            s.weight
-        );
+        assert!((weight - Rgb::splat(expected)).length() < 1e-4, "{weight}");
         // From below, the one-sided light's back faces the point: no light.
-        let s = table.sample(Vec3A::new(0.6, 0.6, -1.0), 0.75, Vec2::new(0.3, 0.3));
-        assert_eq!(s.weight, Rgb::ZERO);
+        let below = Vec3A::new(0.6, 0.6, -1.0);
+        let (_, _, _, weight) = sample_one(&table, below, 0.75, Vec2::new(0.3, 0.3));
+        assert_eq!(weight, Rgb::ZERO);
     }
 
     #[test]
@@ -345,19 +440,20 @@ mod tests {
         );
         let table = LightTable::new(vec![], vec![point, spot]);
         let p_point = table.delta_lights[0].select_probability;
-        let s = table.sample(Vec3A::ZERO, 0.0, Vec2::ZERO);
-        assert!((s.weight.x - 8.0 / 4.0 / p_point).abs() < 1e-4);
-        assert!((s.wi - Vec3A::Z).length() < 1e-6 && (s.distance - 2.0).abs() < 1e-6);
+        let (_, wi, distance, weight) = sample_one(&table, Vec3A::ZERO, 0.0, Vec2::ZERO);
+        assert!((weight.x - 8.0 / 4.0 / p_point).abs() < 1e-4);
+        assert!((wi - Vec3A::Z).length() < 1e-6 && (distance - 2.0).abs() < 1e-6);
         // The spot: full on its axis, nothing outside the outer cone.
         let p_spot = table.delta_lights[1].select_probability;
-        let s = table.sample(Vec3A::ZERO, 0.999, Vec2::ZERO);
-        assert!((s.weight.x - 8.0 / 4.0 / p_spot).abs() < 1e-3);
-        let s = table.sample(Vec3A::new(2.0, 0.0, 0.0), 0.999, Vec2::ZERO);
-        assert_eq!(s.weight, Rgb::ZERO);
+        let (_, _, _, weight) = sample_one(&table, Vec3A::ZERO, 0.999, Vec2::ZERO);
+        assert!((weight.x - 8.0 / 4.0 / p_spot).abs() < 1e-3);
+        let aside = Vec3A::new(2.0, 0.0, 0.0);
+        let (_, _, _, weight) = sample_one(&table, aside, 0.999, Vec2::ZERO);
+        assert_eq!(weight, Rgb::ZERO);
         let sun = DeltaLight::directional(Vec3A::NEG_Z, Rgb::splat(3.0), 1.0);
         let table = LightTable::new(vec![], vec![sun]);
-        let s = table.sample(Vec3A::ZERO, 0.5, Vec2::ZERO);
-        assert!((s.weight - Rgb::splat(3.0)).length() < 1e-6 && s.distance.is_infinite());
-        assert!((s.wi - Vec3A::Z).length() < 1e-6);
+        let (_, wi, distance, weight) = sample_one(&table, Vec3A::ZERO, 0.5, Vec2::ZERO);
+        assert!((weight - Rgb::splat(3.0)).length() < 1e-6 && distance.is_infinite());
+        assert!((wi - Vec3A::Z).length() < 1e-6);
     }
 }

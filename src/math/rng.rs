@@ -46,7 +46,15 @@ pub fn path_key(seed: u64, pixel: u32, sample_index: u32) -> u64 {
 /// 64 random bits for `dimension` of `bounce` of the path with key `key`.
 #[inline]
 fn bits(key: u64, bounce: u32, dimension: u32) -> u64 {
-    mix64(key ^ mix64((bounce as u64) << 32 | dimension as u64))
+    mix64(key ^ dimension_salt(bounce, dimension))
+}
+
+/// The half of the hash that depends only on (`bounce`, `dimension`), the same for every
+/// path: a stage that draws one dimension for many paths computes it once (see
+/// [`uniform3_salted`]).
+#[inline]
+pub fn dimension_salt(bounce: u32, dimension: u32) -> u64 {
+    mix64((bounce as u64) << 32 | dimension as u64)
 }
 
 /// The `width` bits of `h` starting at bit `shift`, as a number in [0, 1): every value is
@@ -67,7 +75,13 @@ pub fn uniform(key: u64, bounce: u32, dimension: u32) -> f32 {
 /// instead of three matters: every hit takes N of them.
 #[inline]
 pub fn uniform3(key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
-    let h = bits(key, bounce, dimension);
+    uniform3_salted(key, dimension_salt(bounce, dimension))
+}
+
+/// [`uniform3`] with the dimension's salt computed beforehand: the same numbers.
+#[inline]
+pub fn uniform3_salted(key: u64, salt: u64) -> (f32, Vec2) {
+    let h = mix64(key ^ salt);
     (
         unit_float(h, 40, 24),
         Vec2::new(unit_float(h, 20, 20), unit_float(h, 0, 20)),

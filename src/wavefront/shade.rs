@@ -3,6 +3,7 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::surface;
+use crate::flatten::lights::{LIGHT_LANES, LightSamples};
 use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
@@ -69,11 +70,17 @@ pub fn shade_hits(
         shadows.t_max[..n * per].par_chunks_mut(per),
         shadows.contribution[..n * per].par_chunks_mut(per),
     );
+    // Shadow ray j of this bounce draws dimension SHADOW_FIRST + j on every path.
+    let shadow_salts: Vec<u64> = (0..params.shadow_rays)
+        .map(|j| rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j))
+        .collect();
     (path_columns, ray_columns, shadow_columns)
         .into_par_iter()
         .with_min_len(256)
-        .map(
-            |(
+        .map_init(
+            LightSamples::default,
+            |light_samples,
+             (
                 (throughput, radiance, count_emission, bsdf_pdf, alive, &key),
                 (&origin, &direction, &t, &slot, &barycentric, next_origin, next_direction),
                 shadow,
@@ -100,7 +107,12 @@ pub fn shade_hits(
                     t_max: shadow.2,
                     contribution: shadow.3,
                 };
-                shade_one(scene, &params, key, hit, &mut path, shadow) as u64
+                let next_event = NextEvent {
+                    salts: &shadow_salts,
+                    samples: light_samples,
+                    shadow,
+                };
+                shade_one(scene, &params, key, hit, &mut path, next_event) as u64
             },
         )
         .sum()
@@ -126,6 +138,14 @@ struct PathView<'a> {
     next_direction: &'a mut Vec3A,
 }
 
+/// What next-event estimation at one hit works with: the random-number salts of the shadow
+/// rays, scratch space for the light samples, and the path's chunk of the shadow batch.
+struct NextEvent<'a> {
+    salts: &'a [u64],
+    samples: &'a mut LightSamples,
+    shadow: ShadowView<'a>,
+}
+
 /// One path's chunk of the shadow batch.
 struct ShadowView<'a> {
     origin: &'a mut Vec3A,
@@ -141,8 +161,13 @@ fn shade_one(
     key: u64,
     hit: Hit,
     path: &mut PathView,
-    shadow: ShadowView,
+    next_event: NextEvent,
 ) -> bool {
+    let NextEvent {
+        salts,
+        samples,
+        shadow,
+    } = next_event;
     shadow.contribution.fill(Rgb::ZERO);
     *path.alive = false;
     if hit.slot == NO_HIT {
@@ -211,37 +236,64 @@ fn shade_one(
         let front_normal = if front { ng } else { -ng };
         let origin = offset_ray_origin(p, p_error, ng, front_normal);
         *shadow.origin = origin;
-        for j in 0..params.shadow_rays as usize {
+        let mut uniforms = [(0.0, Vec2::ZERO); LIGHT_LANES];
+        for (chunk, chunk_salts) in salts.chunks(LIGHT_LANES).enumerate() {
+            let (first, lanes) = (chunk * LIGHT_LANES, chunk_salts.len());
+            for (u, &salt) in uniforms.iter_mut().zip(chunk_salts) {
+                *u = rng::uniform3_salted(key, salt);
+            }
             // Sampled from the offset origin, so the direction and length serve the shadow
             // ray as they are (the offset is a rounding-error bound: it moves the estimate
             // by nothing measurable).
-            let (u_pick, u_point) = rng::uniform3(key, bounce, dim::SHADOW_FIRST + j as u32);
-            let light = scene.lights.sample(origin, u_pick, u_point);
-            let wi = light.wi;
-            let light_weight = surface::light_sample_weight(scene, &light);
-            if light_weight == Rgb::ZERO || (ng.dot(wi) > 0.0) != front {
-                continue; // the light does not shine here, or it is behind the surface
+            scene.lights.sample(origin, &uniforms[..lanes], samples);
+            // The receiver's side of every lane in one vectorised pass: the direction in the
+            // shading frame, and whether the light shines here from the side the shadow rays
+            // leave from.
+            let mut wi_local = [[0.0; LIGHT_LANES]; 3];
+            let mut usable = [0.0f32; LIGHT_LANES];
+            for k in 0..LIGHT_LANES {
+                let wi = [0, 1, 2].map(|axis| samples.wi[axis][k]);
+                let dot = |v: Vec3A| wi[0] * v.x + wi[1] * v.y + wi[2] * v.z;
+                (wi_local[0][k], wi_local[1][k], wi_local[2][k]) =
+                    (dot(frame.s), dot(frame.t), dot(frame.n));
+                let on_front = dot(front_normal) > 0.0;
+                usable[k] = if on_front && samples.scale[k] > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                };
             }
-            let wi_local = frame.to_local(wi);
-            let f = bsdf.eval(wo_local, wi_local);
-            if f == Rgb::ZERO {
-                continue;
+            let mut f = [Rgb::ZERO; LIGHT_LANES];
+            let mut bsdf_pdf = [0.0; LIGHT_LANES];
+            bsdf.eval_and_pdf_lanes(wo_local, &wi_local, &mut f, &mut bsdf_pdf);
+            // What multiplies f and the radiance: the light's weight, the cosine, the 1/N of
+            // the N samples, and the MIS weight of this light sample against the BSDF sample
+            // that could have found the point (punctual lights: weight 1).
+            let mut factor = [0.0; LIGHT_LANES];
+            for k in 0..LIGHT_LANES {
+                let mis_weight = if params.mis {
+                    power_heuristic(
+                        params.shadow_rays as f32 * samples.pdf_solid_angle[k],
+                        bsdf_pdf[k],
+                    )
+                } else {
+                    1.0
+                };
+                factor[k] = samples.scale[k] * wi_local[2][k].abs() * inv_n * mis_weight;
             }
-            // MIS: this light sample against the BSDF sample that could have found the point
-            // (punctual lights have an infinite density: weight 1).
-            let mis_weight = if params.mis {
-                power_heuristic(
-                    params.shadow_rays as f32 * light.pdf_solid_angle,
-                    bsdf.pdf(wo_local, wi_local),
-                )
-            } else {
-                1.0
-            };
-            // Directional lights are infinitely far: nothing may block the way out.
-            shadow.direction[j] = wi;
-            shadow.t_max[j] = light.distance * (1.0 - SHADOW_RAY_SHORTENING);
-            shadow.contribution[j] =
-                *path.throughput * f * light_weight * (ns.dot(wi).abs() * inv_n * mis_weight);
+            for k in 0..lanes {
+                if usable[k] == 0.0 {
+                    continue;
+                }
+                let j = first + k;
+                // Directional lights are infinitely far: nothing may block the way out.
+                shadow.direction[j] = samples.wi(k);
+                shadow.t_max[j] = samples.distance[k] * (1.0 - SHADOW_RAY_SHORTENING);
+                shadow.contribution[j] = *path.throughput
+                    * f[k]
+                    * surface::light_sample_radiance(scene, samples, k)
+                    * factor[k];
+            }
         }
     }
 
@@ -292,14 +344,10 @@ fn shade_one(
 
 /// Veach's power heuristic (beta = 2) for a sample from the strategy of density `pdf`
 /// against one of density `other_pdf`, each already multiplied by its sample count.
-#[inline]
+/// Branch-free, so that lane loops vectorise it.
+#[inline(always)]
 fn power_heuristic(pdf: f32, other_pdf: f32) -> f32 {
     let (a, b) = (pdf * pdf, other_pdf * other_pdf);
-    if a.is_infinite() {
-        1.0
-    } else if a + b > 0.0 {
-        a / (a + b)
-    } else {
-        0.0
-    }
+    let weight = if a + b > 0.0 { a / (a + b) } else { 0.0 };
+    if a == f32::INFINITY { 1.0 } else { weight }
 }

@@ -5,7 +5,7 @@
 
 use crate::bsdf::Bsdf;
 use crate::flatten::FlatScene;
-use crate::flatten::lights::{LightSample, NOT_AREA_LIGHT};
+use crate::flatten::lights::{LightSamples, NOT_AREA_LIGHT};
 use crate::flatten::materials::{SurfaceTextures, TextureRef};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 
@@ -113,19 +113,26 @@ pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
     }
 }
 
-/// A light sample's weight with the emission texture at the sampled point: the table chose
-/// and weighted the light as if it emitted its mean radiance everywhere, so the weight is
-/// rescaled by texel / mean (the density is unchanged, so the estimate stays unbiased).
+/// The radiance of light sample `k` with the emission texture at the sampled point: the
+/// table chose and weighted the light as if it emitted its mean radiance everywhere, so the
+/// radiance is rescaled by texel / mean (the density is unchanged: the estimate stays
+/// unbiased).
 #[inline]
-pub(super) fn light_sample_weight(scene: &FlatScene, sample: &LightSample) -> Rgb {
-    if sample.area_light == NOT_AREA_LIGHT {
-        return sample.weight;
+pub(super) fn light_sample_radiance(scene: &FlatScene, samples: &LightSamples, k: usize) -> Rgb {
+    let radiance = samples.radiance[k];
+    let light = samples.area_light[k];
+    if light == NOT_AREA_LIGHT {
+        return radiance;
     }
-    match scene.textured_emission.get(sample.area_light as usize) {
+    match scene.textured_emission.get(light as usize) {
         Some(Some(e)) => {
-            let texel = lookup(scene, &e.texture, interpolate(e.uvs, sample.barycentric));
-            sample.weight * e.inverse_mean * texel
+            let texel = lookup(
+                scene,
+                &e.texture,
+                interpolate(e.uvs, samples.barycentric[k]),
+            );
+            radiance * e.inverse_mean * texel
         }
-        _ => sample.weight,
+        _ => radiance,
     }
 }
