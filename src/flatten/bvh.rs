@@ -25,7 +25,9 @@ const SHALLOW_DEPTH: usize = 10;
 /// Large scenes are built with obvhs's `fast_build` preset (PLOC with a short search and a
 /// little reinsertion): on the 1.3M-triangle ray sets it builds about 20% faster than
 /// `medium_build` for the same ray rates within noise, while `fastest_build` loses ~30% on
-/// primary rays. Small scenes keep `medium_build`: their build time is negligible.
+/// primary rays. Small scenes use `very_slow_build` (reinsertion over every node): their
+/// build time is negligible, and in the seed room it halves the nodes a shadow packet visits
+/// (8.6 -> 4.2) and cuts those of a closest-hit ray from 7.2 to 4.7.
 const MAX_LEAF_SIZE: u32 = 4;
 /// Scenes with fewer primitives get one primitive per leaf: they are rooms of large,
 /// overlapping triangles, where merging leaves makes every ray test most of the walls
@@ -67,7 +69,7 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
     let params = if shapes.len() < SMALL_SCENE {
         BvhBuildParams {
             max_prims_per_leaf: 1,
-            ..BvhBuildParams::medium_build()
+            ..BvhBuildParams::very_slow_build()
         }
     } else {
         BvhBuildParams {
