@@ -251,12 +251,13 @@ fn shade_one(
             // leave from.
             let mut wi_local = [[0.0; LIGHT_LANES]; 3];
             let mut usable = [0.0f32; LIGHT_LANES];
+            // Plain numbers out of the vectors, so that the lane loop below vectorises.
+            let [s, t, n, side] = [frame.s, frame.t, frame.n, front_normal].map(|v| v.to_array());
+            let [wi_x, wi_y, wi_z] = &samples.wi;
             for k in 0..LIGHT_LANES {
-                let wi = [0, 1, 2].map(|axis| samples.wi[axis][k]);
-                let dot = |v: Vec3A| wi[0] * v.x + wi[1] * v.y + wi[2] * v.z;
-                (wi_local[0][k], wi_local[1][k], wi_local[2][k]) =
-                    (dot(frame.s), dot(frame.t), dot(frame.n));
-                let on_front = dot(front_normal) > 0.0;
+                let dot = |v: [f32; 3]| wi_x[k] * v[0] + wi_y[k] * v[1] + wi_z[k] * v[2];
+                (wi_local[0][k], wi_local[1][k], wi_local[2][k]) = (dot(s), dot(t), dot(n));
+                let on_front = dot(side) > 0.0;
                 usable[k] = if on_front && samples.scale[k] > 0.0 {
                     1.0
                 } else {
