@@ -213,12 +213,7 @@ fn stages(c: &mut Criterion) {
 
         let mut g = c.benchmark_group("shadow");
         g.sample_size(20);
-        let traced = p
-            .shadows
-            .contribution
-            .iter()
-            .filter(|c| **c != Vec3::ZERO)
-            .count();
+        let traced: u32 = p.shadows.count[..p.shadow_paths.len()].iter().sum();
         g.throughput(Throughput::Elements(traced as u64));
         g.bench_function(name, |b| {
             b.iter_batched_ref(

@@ -399,6 +399,9 @@ pub struct Packet<'a> {
     /// Centre of the box of far ends, relative to the origin, and its half extent.
     ends_center: Vec3A,
     ends_half: Vec3A,
+    /// Smallest and largest direction component per axis.
+    directions_min: Vec3A,
+    directions_max: Vec3A,
 }
 
 impl<'a> Packet<'a> {
@@ -407,11 +410,15 @@ impl<'a> Packet<'a> {
     pub fn new(origin: Vec3A, directions: &'a [Vec3A], t_max: &'a [f32]) -> Self {
         debug_assert!(directions.len() <= PACKET_SIZE && t_max.len() == directions.len());
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+        let (mut directions_min, mut directions_max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         for (&d, &t) in directions.iter().zip(t_max) {
             let end = t * d; // relative to the origin
             (lo, hi) = (lo.min(end), hi.max(end));
+            (directions_min, directions_max) = (directions_min.min(d), directions_max.max(d));
         }
         Packet {
+            directions_min,
+            directions_max,
             origin,
             directions,
             t_max,
@@ -471,15 +478,13 @@ impl Bvh4 {
             return 0;
         }
         let all = if n == 32 { u32::MAX } else { (1u32 << n) - 1 };
-        // The interval of inverse directions per axis, and which axes keep one sign.
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        let (mut positive, mut negative) = (0b111, 0b111);
-        for &d in directions {
-            let inverse = safe_inverse3(d);
-            (lo, hi) = (lo.min(inverse), hi.max(inverse));
-            positive &= d.cmpge(Vec3A::ZERO).bitmask();
-            negative &= d.cmplt(Vec3A::ZERO).bitmask();
-        }
+        // Which axes keep one sign, and the interval of inverse directions on them: on
+        // either side of zero `safe_inverse` never increases, so the interval's ends are the
+        // inverses of the extreme components (exactly what inverting every ray would give).
+        let (d_min, d_max) = (packet.directions_min, packet.directions_max);
+        let positive = d_min.cmpge(Vec3A::ZERO).bitmask();
+        let negative = d_max.cmplt(Vec3A::ZERO).bitmask();
+        let (lo, hi) = (safe_inverse3(d_max), safe_inverse3(d_min));
         let mut axes = [(0usize, 0usize, Vec4::ZERO, Vec4::ZERO, Vec4::ZERO); 3];
         let mut constrained = 0;
         for axis in 0..3 {
@@ -542,11 +547,14 @@ impl Bvh4 {
     }
 }
 
-/// `1 / x`, with a large finite stand-in for `1 / 0` that keeps `0 * inf` NaNs out of box tests.
+/// `1 / x`, with a large finite stand-in for `1 / 0` that keeps `0 * inf` NaNs out of box
+/// tests. Its sign follows `x >= 0`, as the traversals' choice of near planes does: `-0.0`
+/// counts as positive (taking its sign bit sent such rays' slabs the wrong way round).
 #[inline(always)]
 fn safe_inverse(x: f32) -> f32 {
     if x.abs() < f32::EPSILON {
-        1.0 / f32::EPSILON.copysign(x)
+        let sign = if x >= 0.0 { 1.0 } else { -1.0 };
+        sign / f32::EPSILON
     } else {
         1.0 / x
     }
@@ -556,7 +564,12 @@ fn safe_inverse(x: f32) -> f32 {
 #[inline(always)]
 fn safe_inverse3(v: Vec3A) -> Vec3A {
     let tiny = v.abs().cmplt(Vec3A::splat(f32::EPSILON));
-    Vec3A::select(tiny, Vec3A::splat(f32::EPSILON).copysign(v), v).recip()
+    let stand_in = Vec3A::select(
+        v.cmpge(Vec3A::ZERO),
+        Vec3A::splat(f32::EPSILON),
+        Vec3A::splat(-f32::EPSILON),
+    );
+    Vec3A::select(tiny, stand_in, v).recip()
 }
 
 impl Shape {
@@ -793,6 +806,35 @@ mod tests {
             }
         }
         assert!(culled > 4000, "clear cases are culled: {culled}");
+    }
+
+    #[test]
+    fn negative_zero_direction_components_count_as_parallel() {
+        // A ray straight up whose x and y components are -0.0 (as `-direction` of a light
+        // pointing straight down gives): it must still find the triangle above it, singly,
+        // by any-hit, and in a packet.
+        let tri = TriangleGeom::new(
+            Vec3A::new(-1.0, -1.0, 1.0),
+            Vec3A::new(1.0, -1.0, 1.0),
+            Vec3A::new(0.0, 1.0, 1.0),
+        );
+        let shapes = [Shape::Triangle(tri)];
+        let (bvh, _) = build_bvh(&shapes).unwrap();
+        let (origin, direction) = (Vec3A::new(0.1, 0.2, 0.0), Vec3A::new(-0.0, -0.0, 1.0));
+        let intersect = |s: u32, t: f32| shapes[s as usize].intersect_t(origin, direction, t);
+        assert_eq!(
+            bvh.closest_hit(origin, direction, 10.0, intersect),
+            Some((0, 1.0))
+        );
+        assert!(bvh.any_hit(origin, direction, 10.0, intersect));
+        let directions = [direction, Vec3A::new(0.0, 0.0, 1.0)];
+        let packet = Packet::new(origin, &directions, &[10.0, 10.0]);
+        let occluded = bvh.any_hit_packet(&packet, |_, open| {
+            (0..2)
+                .filter(|k| open & (1 << k) != 0 && intersect(0, 10.0) < f32::INFINITY)
+                .fold(0, |m, k| m | 1 << k)
+        });
+        assert_eq!(occluded, 0b11);
     }
 
     #[test]

@@ -91,20 +91,23 @@ impl PathState {
     }
 }
 
-/// Shadow rays: a fixed number of entries per live path (`per_path`), so that each path owns
-/// a contiguous chunk and the shadow stage can accumulate without synchronisation. The rays
-/// of one path share their origin, which lets the shadow stage trace them as one packet.
+/// Shadow rays: room for a fixed number of entries per live path (`per_path`), so that each
+/// path owns a contiguous chunk and the shadow stage can accumulate without synchronisation.
+/// A path's rays are packed at the front of its chunk (`count` of them) and share their
+/// origin, which lets the shadow stage trace them as packets straight from the buffers.
 #[derive(Default)]
 pub struct ShadowBatch {
     /// Entries per path (at least 1).
     pub per_path: usize,
+    /// Shadow rays each path made (at most `per_path`).
+    pub count: Vec<u32>,
     /// Shared origin of each path's shadow rays, offset off the surface (one per path).
     pub origin: Vec<Vec3A>,
     /// Unit direction toward the light point.
     pub direction: Vec<Vec3A>,
     /// Distance up to which occluders count (just short of the light).
     pub t_max: Vec<f32>,
-    /// Radiance added to the path if the ray is unoccluded; zero marks an unused entry.
+    /// Radiance added to the path if the ray is unoccluded.
     pub contribution: Vec<Rgb>,
 }
 
@@ -115,6 +118,7 @@ impl ShadowBatch {
     pub fn grow_to(&mut self, paths: usize) {
         if self.origin.len() < paths {
             let n = paths * self.per_path;
+            self.count.resize(paths, 0);
             self.origin.resize(paths, Vec3A::ZERO);
             self.direction.resize(n, Vec3A::Z);
             self.t_max.resize(n, 0.0);

@@ -65,6 +65,7 @@ pub fn shade_hits(
         &mut next_rays.direction,
     );
     let shadow_columns = (
+        &mut shadows.count[..n],
         &mut shadows.origin[..n],
         shadows.direction[..n * per].par_chunks_mut(per),
         shadows.t_max[..n * per].par_chunks_mut(per),
@@ -102,10 +103,11 @@ pub fn shade_hits(
                     barycentric,
                 };
                 let shadow = ShadowView {
-                    origin: shadow.0,
-                    direction: shadow.1,
-                    t_max: shadow.2,
-                    contribution: shadow.3,
+                    count: shadow.0,
+                    origin: shadow.1,
+                    direction: shadow.2,
+                    t_max: shadow.3,
+                    contribution: shadow.4,
                 };
                 let next_event = NextEvent {
                     salts: &shadow_salts,
@@ -148,6 +150,7 @@ struct NextEvent<'a> {
 
 /// One path's chunk of the shadow batch.
 struct ShadowView<'a> {
+    count: &'a mut u32,
     origin: &'a mut Vec3A,
     direction: &'a mut [Vec3A],
     t_max: &'a mut [f32],
@@ -168,7 +171,7 @@ fn shade_one(
         samples,
         shadow,
     } = next_event;
-    shadow.contribution.fill(Rgb::ZERO);
+    *shadow.count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
         return false; // the background is black
@@ -237,8 +240,8 @@ fn shade_one(
         let origin = offset_ray_origin(p, p_error, ng, front_normal);
         *shadow.origin = origin;
         let mut uniforms = [(0.0, Vec2::ZERO); LIGHT_LANES];
-        for (chunk, chunk_salts) in salts.chunks(LIGHT_LANES).enumerate() {
-            let (first, lanes) = (chunk * LIGHT_LANES, chunk_salts.len());
+        for chunk_salts in salts.chunks(LIGHT_LANES) {
+            let lanes = chunk_salts.len();
             for (u, &salt) in uniforms.iter_mut().zip(chunk_salts) {
                 *u = rng::uniform3_salted(key, salt);
             }
@@ -286,14 +289,19 @@ fn shade_one(
                 if usable[k] == 0.0 {
                     continue;
                 }
-                let j = first + k;
-                // Directional lights are infinitely far: nothing may block the way out.
-                shadow.direction[j] = samples.wi(k);
-                shadow.t_max[j] = samples.distance[k] * (1.0 - SHADOW_RAY_SHORTENING);
-                shadow.contribution[j] = *path.throughput
+                let contribution = *path.throughput
                     * f[k]
                     * surface::light_sample_radiance(scene, samples, k)
                     * factor[k];
+                if contribution == Rgb::ZERO {
+                    continue; // nothing to add: no ray to trace
+                }
+                let j = *shadow.count as usize;
+                *shadow.count += 1;
+                // Directional lights are infinitely far: nothing may block the way out.
+                shadow.direction[j] = samples.wi(k);
+                shadow.t_max[j] = samples.distance[k] * (1.0 - SHADOW_RAY_SHORTENING);
+                shadow.contribution[j] = contribution;
             }
         }
     }

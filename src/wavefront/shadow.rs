@@ -5,7 +5,6 @@
 use super::batch::{PathState, ShadowBatch};
 use crate::flatten::FlatScene;
 use crate::flatten::bvh::{PACKET_SIZE, Packet};
-use crate::math::{Rgb, Vec3A};
 use rayon::prelude::*;
 
 /// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
@@ -14,6 +13,7 @@ pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut P
     let (n, per) = (paths.len(), shadows.per_path);
     (
         &mut paths.radiance,
+        &shadows.count[..n],
         &shadows.origin[..n],
         shadows.direction[..n * per].par_chunks(per),
         shadows.t_max[..n * per].par_chunks(per),
@@ -21,36 +21,22 @@ pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut P
     )
         .into_par_iter()
         .with_min_len(64)
-        .map(|(radiance, &origin, direction, t_max, contribution)| {
-            let mut traced = 0;
-            let mut j = 0;
-            while j < per {
-                // Gather the next packet of used entries (unused ones have zero contribution).
-                let mut index = [0usize; PACKET_SIZE];
-                let mut packet_direction = [Vec3A::ZERO; PACKET_SIZE];
-                let mut packet_t_max = [0.0f32; PACKET_SIZE];
-                let mut n = 0;
-                while j < per && n < PACKET_SIZE {
-                    if contribution[j] != Rgb::ZERO {
-                        (index[n], packet_direction[n], packet_t_max[n]) =
-                            (j, direction[j], t_max[j]);
-                        n += 1;
-                    }
-                    j += 1;
-                }
-                if n == 0 {
-                    break;
-                }
-                traced += n as u64;
-                let packet = Packet::new(origin, &packet_direction[..n], &packet_t_max[..n]);
-                let occluded = scene.occluded_packet(&packet);
-                for k in 0..n {
-                    if occluded & (1 << k) == 0 {
-                        *radiance += contribution[index[k]];
+        .map(
+            |(radiance, &count, &origin, direction, t_max, contribution)| {
+                let count = count as usize;
+                for first in (0..count).step_by(PACKET_SIZE) {
+                    let rays = first..(first + PACKET_SIZE).min(count);
+                    let packet =
+                        Packet::new(origin, &direction[rays.clone()], &t_max[rays.clone()]);
+                    let occluded = scene.occluded_packet(&packet);
+                    for (k, c) in contribution[rays].iter().enumerate() {
+                        if occluded & (1 << k) == 0 {
+                            *radiance += *c;
+                        }
                     }
                 }
-            }
-            traced
-        })
+                count as u64
+            },
+        )
         .sum()
 }
