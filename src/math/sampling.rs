@@ -57,12 +57,19 @@ pub fn sample_uniform_sphere(u: Vec2) -> Vec3A {
 }
 
 /// Index `i` with probability `(cdf[i] - cdf[i-1]) / cdf.last()`, for a non-decreasing `cdf`
-/// whose last entry is the total. Binary search: O(log n).
+/// whose last entry is the total. Binary search (O(log n)) beyond 17 entries.
 #[inline]
 pub fn sample_discrete(cdf: &[f32], u: f32) -> usize {
     debug_assert!(!cdf.is_empty());
     let target = u * cdf[cdf.len() - 1];
-    cdf.partition_point(|&c| c <= target).min(cdf.len() - 1)
+    let (head, _) = cdf.split_at(cdf.len() - 1);
+    if head.len() <= 16 {
+        // Counting is branch-free: a binary search over a few entries mispredicts half its
+        // branches (a quad light's two triangles are chosen by a coin flip).
+        head.iter().map(|&c| (c <= target) as usize).sum()
+    } else {
+        head.partition_point(|&c| c <= target)
+    }
 }
 
 #[cfg(test)]
@@ -143,6 +150,21 @@ mod tests {
         }
         assert!((mean / m as f32).length() < 1e-3);
         assert!((cap as f64 / m - 0.25).abs() < 2e-3);
+    }
+
+    #[test]
+    fn discrete_sampling_counts_and_searches_alike() {
+        // Short tables are counted, long ones searched: both give the first entry above the
+        // target, with ties (zero weights) and the clamp at the end.
+        for len in 1..40 {
+            let cdf: Vec<f32> = (0..len).map(|i| ((i + 1) / 2 * 3) as f32 + 1.0).collect();
+            for i in 0..=200 {
+                let u = i as f32 / 200.0;
+                let target = u * cdf[len - 1];
+                let expected = cdf.partition_point(|&c| c <= target).min(len - 1);
+                assert_eq!(sample_discrete(&cdf, u), expected, "len {len}, u {u}");
+            }
+        }
     }
 
     #[test]

@@ -260,8 +260,9 @@ fn shade_one(
             for k in 0..LIGHT_LANES {
                 let dot = |v: [f32; 3]| wi_x[k] * v[0] + wi_y[k] * v[1] + wi_z[k] * v[2];
                 (wi_local[0][k], wi_local[1][k], wi_local[2][k]) = (dot(s), dot(t), dot(n));
+                // `&`, not `&&`: no branch, so that the loop vectorises.
                 let on_front = dot(side) > 0.0;
-                usable[k] = if on_front && samples.scale[k] > 0.0 {
+                usable[k] = if on_front & (samples.scale[k] > 0.0) {
                     1.0
                 } else {
                     0.0
