@@ -1,7 +1,7 @@
 //! Fuzzes the glTF importer through `load_scene` (import, placement or camera framing), the
 //! flattening that validates the world, and a tiny render. An input that starts with the
 //! binary magic `glTF` is read as `model.glb`, any other as `model.gltf` (JSON).
-//! Crashes become regression tests in tests/fuzz_regressions.rs.
+//! Crashes become regression tests in tests/e2e/fuzz_regressions.rs.
 #![no_main]
 
 mod common;

@@ -1,7 +1,7 @@
 //! Fuzzes the OBJ/MTL importer through `load_scene` (import, placement in the room, camera),
 //! the flattening that validates the world, and a tiny render. The input is an OBJ file,
 //! optionally followed by a line `#MTL` and the material library `model.mtl` it may name.
-//! Crashes become regression tests in tests/fuzz_regressions.rs.
+//! Crashes become regression tests in tests/e2e/fuzz_regressions.rs.
 #![no_main]
 
 mod common;

@@ -1,7 +1,7 @@
 //! Fuzzes the TOML scene loader, the flattening that validates its output, and a tiny render
 //! of whatever passes: any text must give an image or an `Err`, never a panic (the fuzz build
 //! has debug assertions on, so the renderer's `debug_assert!`s on valid data are checked too).
-//! Crashes become regression tests in tests/fuzz_regressions.rs.
+//! Crashes become regression tests in tests/e2e/fuzz_regressions.rs.
 #![no_main]
 
 mod common;

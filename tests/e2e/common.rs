@@ -1,9 +1,8 @@
 //! Helpers shared by the end-to-end tests: scenes from TOML text, renders on a given number
 //! of threads, and the statistics of image means.
-#![allow(dead_code)]
 
 use std::path::Path;
-use std::process::Output;
+use std::process::{Command, Output};
 use wavetrace::{
     FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render,
     scene::load::load_scene_str,
@@ -209,4 +208,30 @@ pub fn files_in(dir: &Path) -> Vec<String> {
         .collect();
     names.sort();
     names
+}
+
+/// Set in the child process of `run_alone` to the name of the test it runs alone.
+const RUN_ALONE: &str = "WAVETRACE_TEST_RUN_ALONE";
+
+/// Runs `body` for the test `test` (its path in this binary, e.g. `large_obj::name`) in a child
+/// process of this test binary that runs that test only, so that no other test shares the
+/// process (for figures of the whole process, such as its peak memory). Passes on the child's
+/// stderr; panics with its output unless it ran that one test and passed.
+pub fn run_alone(test: &str, body: impl FnOnce()) {
+    if std::env::var_os(RUN_ALONE).is_some_and(|name| name == test) {
+        body();
+        return;
+    }
+    let out = Command::new(std::env::current_exe().expect("the test binary's path"))
+        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .env(RUN_ALONE, test)
+        .output()
+        .expect("the test binary runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    eprint!("{stderr}");
+    assert!(
+        out.status.success() && stdout.contains("test result: ok. 1 passed"),
+        "{test} failed in its own process:\n{stdout}\n{stderr}"
+    );
 }

@@ -2,8 +2,7 @@
 //! must end with exit code 1 (2 for a usage error), one `error:` line on stderr that names the
 //! file, the place in it and the problem, no panic, and no output file created or changed.
 
-mod common;
-use common::{check_failure, files_in};
+use crate::common::{check_failure, files_in};
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

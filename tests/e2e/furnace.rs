@@ -1,8 +1,7 @@
 //! Furnace tests: closed Lambertian enclosures that emit Le and reflect with albedo a have
 //! radiance Le / (1 - a) everywhere (the Neumann series of the rendering equation).
 
-mod common;
-use common::*;
+use crate::common::*;
 use wavetrace::RenderSettings;
 
 /// Checks one enclosure: every pixel is an independent estimate of the same value, so the

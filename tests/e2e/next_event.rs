@@ -1,8 +1,7 @@
 //! Next-event estimation is unbiased: the number of shadow rays, and switching it off
 //! altogether (emitters found only by hitting them), change the noise but not the mean.
 
-mod common;
-use common::*;
+use crate::common::*;
 use wavetrace::RenderSettings;
 
 #[test]

@@ -2,8 +2,7 @@
 //! materials render exactly as those do, a white metal sphere under uniform light loses only
 //! the single-scattering GGX energy, and bad parameters are refused with a clear message.
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 use wavetrace::RenderSettings;
 use wavetrace::scene::load::load_scene_str;

@@ -5,8 +5,7 @@
 //! panic, and no output file. The warning cases (degenerate triangles, zero-area emitters, a
 //! missing `.mtl`) must render, say so on stderr, and write an image without NaN.
 
-mod common;
-use common::{check_failure, files_in};
+use crate::common::{check_failure, files_in};
 
 use serde_json::{Value, json};
 use std::path::Path;

@@ -7,8 +7,7 @@
 //! estimate its standard error; that is the case MIS exists for, and it is measured on the
 //! glossy room instead (README).
 
-mod common;
-use common::*;
+use crate::common::*;
 use wavetrace::RenderSettings;
 
 /// A closed box with a ceiling light of half-width `half` (same power whatever its size), a

@@ -3,9 +3,7 @@
 //! the quad and nowhere else, with tolerances from the renders' standard errors. Also checks
 //! that next-event estimation of a textured emitter is unbiased.
 
-mod common;
-
-use common::{assert_agree, render_image};
+use crate::common::{assert_agree, assert_finite, render_image};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use wavetrace::{FlatScene, Image, RenderSettings, flatten, load_scene};
@@ -142,7 +140,7 @@ fn region_estimate(
 ) -> ([f64; 3], [f64; 3]) {
     let render = |seed| {
         let image: Image = render_image(scene, &RenderSettings { seed, ..*settings });
-        common::assert_finite(&image);
+        assert_finite(&image);
         image
     };
     let (a, b) = (render(settings.seed), render(settings.seed ^ 0x5EED_F00D));

@@ -1,8 +1,7 @@
 //! The image is a function of scene, settings and seed only: not of the thread count or the
 //! batch size.
 
-mod common;
-use common::*;
+use crate::common::*;
 use wavetrace::RenderSettings;
 
 #[test]

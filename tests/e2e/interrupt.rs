@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const ROOM: &str = include_str!("../scenes/room.toml");
+const ROOM: &str = include_str!("../../scenes/room.toml");
 const REQUESTED_SPP: u32 = 1_000_000;
 
 struct Stopped {

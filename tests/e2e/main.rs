@@ -1,0 +1,26 @@
+//! End-to-end tests, one module per topic, all in one test binary: every integration-test
+//! binary is linked (with the release profile's thin LTO) on its own, so one binary instead of
+//! one per file saves most of the build time of `cargo test --release`.
+//!
+//! The modules share one process and run on parallel test threads, so no test may change
+//! process-wide state (environment, current directory, signal handlers, rayon's global pool):
+//! renders that need a thread count build their own pool (`common::render_with_threads`), the
+//! command-line tests run the binary as a child, and a test that measures the whole process
+//! runs itself alone in a child process (`common::run_alone`).
+
+mod cli;
+mod cli_errors;
+mod cli_import_errors;
+mod common;
+mod cornell;
+mod determinism;
+mod furnace;
+mod fuzz_regressions;
+mod import;
+mod interrupt;
+mod large_obj;
+mod materials;
+mod mis;
+mod next_event;
+mod shipped_scenes;
+mod textures;
