@@ -15,13 +15,13 @@ struct Stopped {
     stderr: String,
 }
 
-/// Starts a render of the seed room that would take hours, waits until it has begun
-/// rendering, sends `signals` (`kill -SIGNAL pid`) `gap` apart, and waits for the process.
+/// Starts a render of the seed room that would take hours (with `shadow_rays` per hit),
+/// waits until it has begun rendering, sends `signals` (`kill -SIGNAL pid`) `gap` apart, and
+/// waits for the process.
 fn render_and_signal(
     dir: &Path,
     output: &Path,
-    size: u32,
-    batch: u32,
+    (size, batch, shadow_rays): (u32, u32, u32),
     signals: &[&str],
     gap: Duration,
 ) -> Stopped {
@@ -35,6 +35,7 @@ fn render_and_signal(
         .args(["--width", &size.to_string(), "--height", &size.to_string()])
         .args(["--spp", &REQUESTED_SPP.to_string()])
         .args(["--batch-size", &batch.to_string()])
+        .args(["--shadow-rays", &shadow_rays.to_string()])
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
@@ -111,7 +112,7 @@ fn check_partial_image(dir: &Path, output: &Path, stopped: &Stopped, signal: &st
 fn sigint_writes_the_samples_finished_so_far() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("room.exr");
-    let stopped = render_and_signal(dir.path(), &output, 32, 256, &["INT"], Duration::ZERO);
+    let stopped = render_and_signal(dir.path(), &output, (32, 256, 1), &["INT"], Duration::ZERO);
     check_partial_image(dir.path(), &output, &stopped, "SIGINT", 130);
 }
 
@@ -119,7 +120,7 @@ fn sigint_writes_the_samples_finished_so_far() {
 fn sigterm_writes_the_samples_finished_so_far() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("room.exr");
-    let stopped = render_and_signal(dir.path(), &output, 32, 256, &["TERM"], Duration::ZERO);
+    let stopped = render_and_signal(dir.path(), &output, (32, 256, 1), &["TERM"], Duration::ZERO);
     check_partial_image(dir.path(), &output, &stopped, "SIGTERM", 143);
 }
 
@@ -127,13 +128,13 @@ fn sigterm_writes_the_samples_finished_so_far() {
 fn a_second_sigint_quits_at_once_without_an_image() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("room.exr");
-    // One batch of 512x512 paths takes far longer than the 5 ms between the two signals, so
-    // both arrive before the render reaches a batch boundary.
+    // One batch of 512x512 paths with 16 shadow rays per hit takes about a second of both
+    // cores, far longer than the 5 ms between the two signals (plus starting `kill` twice on
+    // a busy machine), so both arrive before the render reaches a batch boundary.
     let stopped = render_and_signal(
         dir.path(),
         &output,
-        512,
-        512 * 512,
+        (512, 512 * 512, 16),
         &["INT", "INT"],
         Duration::from_millis(5),
     );
