@@ -66,30 +66,31 @@ pub struct Bvh4 {
 /// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
 /// degenerate geometry does that).
 pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
-    let params = if shapes.len() < SMALL_SCENE {
-        BvhBuildParams {
-            max_prims_per_leaf: 1,
-            ..BvhBuildParams::very_slow_build()
-        }
+    let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
+        (BvhBuildParams::very_slow_build(), 1)
     } else {
-        BvhBuildParams {
-            max_prims_per_leaf: MAX_LEAF_SIZE,
-            ..BvhBuildParams::fast_build()
-        }
+        (BvhBuildParams::fast_build(), MAX_LEAF_SIZE)
     };
     let aabbs: Vec<Aabb> = shapes.par_iter().map(Shape::aabb).collect();
     let bvh2 = build_bvh2(&aabbs, params);
     let mut bvh = Bvh4::default();
+    let mut order = Vec::with_capacity(shapes.len());
     if !shapes.is_empty() {
-        bvh.depth = collapse(&bvh2, &[0], &mut bvh.nodes);
+        let leaf_sizes = leaf_sizes(&bvh2, max_leaf_size, params.collapse_traversal_cost);
+        let tree = BinaryTree {
+            bvh2: &bvh2,
+            leaf_sizes: &leaf_sizes,
+        };
+        bvh.depth = tree.collapse(&[0], &mut bvh.nodes, &mut order);
     }
-    (bvh.depth <= MAX_DEPTH).then(|| (bvh, bvh2.primitive_indices))
+    (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
 }
 
-/// The binary BVH: obvhs's PLOC build, reinsertion and leaf collapse, the steps of its
-/// `build_bvh2` without the validation that build runs with debug assertions on: that one
-/// panics on trees deeper than 96, which degenerate input can make, while [`build_bvh`]
-/// refuses such trees with an error in every build.
+/// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
+/// the steps of its `build_bvh2` without its leaf collapse (which [`leaf_sizes`] replaces)
+/// and without the validation that build runs with debug assertions on: that one panics on
+/// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
+/// trees with an error in every build.
 fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
     let indices = (0..aabbs.len() as u32).collect();
     let mut bvh2 = obvhs::ploc::PlocBuilder::with_capacity(aabbs.len()).build(
@@ -101,11 +102,6 @@ fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
     );
     let mut reinsertion = obvhs::bvh2::reinsertion::ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
-    obvhs::bvh2::leaf_collapser::collapse(
-        &mut bvh2,
-        params.max_prims_per_leaf,
-        params.collapse_traversal_cost,
-    );
     reinsertion.run(
         &mut bvh2,
         params.reinsertion_batch_ratio * params.post_collapse_reinsertion_batch_ratio_multiplier,
@@ -114,55 +110,133 @@ fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
     bvh2
 }
 
-/// Appends the 4-wide node made of the binary nodes `children` (expanded until there are
-/// four or only leaves remain) and, recursively, its subtrees. Returns the subtree's depth.
-fn collapse(bvh2: &Bvh2, children: &[u32], nodes: &mut Vec<Node4>) -> usize {
-    let mut lanes = ArrayVec4::from(children);
-    while lanes.len() < 4 {
-        // Open the inner child with the largest surface: it is the most likely to be entered.
-        let widest = lanes
-            .iter()
-            .enumerate()
-            .filter(|(_, n)| !bvh2.nodes[**n as usize].is_leaf())
-            .max_by(|a, b| {
-                let area = |n: u32| bvh2.nodes[n as usize].aabb().half_area();
-                area(*a.1).total_cmp(&area(*b.1))
-            });
-        let Some((k, &n)) = widest else { break };
-        let first = bvh2.nodes[n as usize].first_index;
-        lanes.replace_with_two(k, first, first + 1);
-    }
-    let index = nodes.len();
-    let empty = Node4 {
-        bounds: [
-            Vec4::INFINITY,
-            Vec4::INFINITY,
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-            Vec4::NEG_INFINITY,
-            Vec4::NEG_INFINITY,
-        ],
-        child: [u32::MAX; 4],
-        count: [0; 4],
+/// Per binary node, the number of primitives below it if its subtree becomes one leaf of
+/// the 4-wide tree, else 0. A subtree of at most `max_leaf_size` primitives becomes a leaf
+/// when that lowers its surface area cost (testing all its primitives against keeping its
+/// nodes, each costing `node_cost` primitive tests), so that far-apart primitives stay apart.
+fn leaf_sizes(bvh2: &Bvh2, max_leaf_size: u32, node_cost: f32) -> Vec<u32> {
+    let nodes = &bvh2.nodes;
+    // Children before parents: PLOC stores every parent before its children; reinsertion
+    // moves nodes, after which a depth-first order is made.
+    let post_order: Vec<u32> = if bvh2.children_are_ordered_after_parents {
+        (0..nodes.len() as u32).rev().collect()
+    } else {
+        let mut pre_order = Vec::with_capacity(nodes.len());
+        let mut stack = vec![0u32];
+        while let Some(n) = stack.pop() {
+            pre_order.push(n);
+            let node = &nodes[n as usize];
+            if !node.is_leaf() {
+                stack.extend([node.first_index, node.first_index + 1]);
+            }
+        }
+        pre_order.reverse();
+        pre_order
     };
-    nodes.push(empty);
-    let mut depth = 1;
-    for (k, &n) in lanes.as_slice().iter().enumerate() {
-        let b = &bvh2.nodes[n as usize];
-        let aabb = b.aabb();
-        for axis in 0..3 {
-            nodes[index].bounds[axis][k] = aabb.min[axis];
-            nodes[index].bounds[axis + 3][k] = aabb.max[axis];
+    let mut size = vec![0u32; nodes.len()];
+    let mut cost = vec![0f32; nodes.len()];
+    for &n in &post_order {
+        let n = n as usize;
+        let node = &nodes[n];
+        let area = node.aabb().half_area();
+        if node.is_leaf() {
+            size[n] = node.prim_count;
+            cost[n] = area * node.prim_count as f32;
+            continue;
         }
-        if b.is_leaf() {
-            nodes[index].child[k] = b.first_index;
-            nodes[index].count[k] = b.prim_count;
+        let (left, right) = (node.first_index as usize, node.first_index as usize + 1);
+        let split_cost = area * node_cost + cost[left] + cost[right];
+        let merged = size[left] + size[right];
+        let fits = size[left] > 0 && size[right] > 0 && merged <= max_leaf_size;
+        if fits && area * merged as f32 <= split_cost {
+            size[n] = merged;
+            cost[n] = area * merged as f32;
         } else {
-            nodes[index].child[k] = nodes.len() as u32;
-            depth = depth.max(1 + collapse(bvh2, &[b.first_index, b.first_index + 1], nodes));
+            cost[n] = split_cost;
         }
     }
-    depth
+    size
+}
+
+/// The binary BVH with its leaves chosen by [`leaf_sizes`].
+struct BinaryTree<'a> {
+    bvh2: &'a Bvh2,
+    leaf_sizes: &'a [u32],
+}
+
+impl BinaryTree<'_> {
+    fn is_leaf(&self, n: u32) -> bool {
+        self.leaf_sizes[n as usize] > 0
+    }
+
+    /// Appends the 4-wide node made of the binary nodes `children` (expanded until there are
+    /// four or only leaves remain) and, recursively, its subtrees; appends the primitives of
+    /// its leaves to `order`, so that every leaf is a contiguous run of slots. Returns the
+    /// subtree's depth.
+    fn collapse(&self, children: &[u32], nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
+        let bvh2 = &self.bvh2.nodes;
+        let mut lanes = ArrayVec4::from(children);
+        while lanes.len() < 4 {
+            // Open the inner child with the largest surface: it is the most likely to be entered.
+            let widest = lanes
+                .iter()
+                .enumerate()
+                .filter(|(_, n)| !self.is_leaf(**n))
+                .max_by(|a, b| {
+                    let area = |n: u32| bvh2[n as usize].aabb().half_area();
+                    area(*a.1).total_cmp(&area(*b.1))
+                });
+            let Some((k, &n)) = widest else { break };
+            let first = bvh2[n as usize].first_index;
+            lanes.replace_with_two(k, first, first + 1);
+        }
+        let index = nodes.len();
+        nodes.push(Node4 {
+            bounds: [
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
+            ],
+            child: [u32::MAX; 4],
+            count: [0; 4],
+        });
+        let mut depth = 1;
+        for (k, &n) in lanes.as_slice().iter().enumerate() {
+            let b = &bvh2[n as usize];
+            let aabb = b.aabb();
+            for axis in 0..3 {
+                nodes[index].bounds[axis][k] = aabb.min[axis];
+                nodes[index].bounds[axis + 3][k] = aabb.max[axis];
+            }
+            if self.is_leaf(n) {
+                nodes[index].child[k] = order.len() as u32;
+                nodes[index].count[k] = self.leaf_sizes[n as usize];
+                self.append_primitives(n, order);
+            } else {
+                nodes[index].child[k] = nodes.len() as u32;
+                let subtree = [b.first_index, b.first_index + 1];
+                depth = depth.max(1 + self.collapse(&subtree, nodes, order));
+            }
+        }
+        depth
+    }
+
+    /// Appends the primitives below binary node `n` (a small subtree) to `order`.
+    fn append_primitives(&self, n: u32, order: &mut Vec<u32>) {
+        let node = &self.bvh2.nodes[n as usize];
+        if node.is_leaf() {
+            let first = node.first_index as usize;
+            order.extend_from_slice(
+                &self.bvh2.primitive_indices[first..first + node.prim_count as usize],
+            );
+        } else {
+            self.append_primitives(node.first_index, order);
+            self.append_primitives(node.first_index + 1, order);
+        }
+    }
 }
 
 /// Up to four binary nodes that become the lanes of one 4-wide node (no allocation per node).
