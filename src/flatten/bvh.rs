@@ -62,6 +62,24 @@ pub struct Bvh4 {
     pub depth: usize,
 }
 
+impl Bvh4 {
+    /// The box around everything in the tree; `None` for an empty tree.
+    pub fn bounds(&self) -> Option<Aabb> {
+        let root = self.nodes.first()?;
+        let lo = Vec3A::new(
+            root.bounds[0].min_element(),
+            root.bounds[1].min_element(),
+            root.bounds[2].min_element(),
+        );
+        let hi = Vec3A::new(
+            root.bounds[3].max_element(),
+            root.bounds[4].max_element(),
+            root.bounds[5].max_element(),
+        );
+        Some(Aabb::new(lo, hi))
+    }
+}
+
 /// Builds the BVH over `shapes`. Returns it with the map from BVH slots to shapes: slot `i`
 /// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
 /// degenerate geometry does that).

@@ -23,6 +23,7 @@ use crate::scene::{
 use crate::texture::Texture;
 use lights::{AreaLight, DeltaLight, LightTable};
 use materials::{SurfaceTextures, TextureInterner, TextureRef, TexturedEmission};
+use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 use spheres::SphereGeom;
 use std::path::Path;
@@ -81,16 +82,63 @@ pub struct FlatScene {
     pub warnings: Vec<String>,
 }
 
-/// One primitive before BVH ordering.
-struct Primitive {
-    shape: Shape,
-    normals: [Vec3; 3],
-    uvs: [Vec2; 3],
-    tangents: [Vec4; 3],
+/// The primitives of one entity (a mesh's triangles or a sphere), which share its material
+/// and emitter.
+struct Group {
+    /// Index of the group's first primitive in flattening order; the group runs up to the
+    /// next group's first.
+    first: usize,
     material: u32,
     emitter: Option<Emitter>,
     /// The emitter's texture and the texture's mean.
     emission_texture: Option<(TextureRef, Rgb)>,
+}
+
+/// Per-primitive columns in flattening order (before BVH ordering). A vertex-attribute
+/// column is left empty when no primitive of the scene has that attribute: the BVH-ordered
+/// column is then all zeros, made without touching memory per primitive.
+#[derive(Default)]
+struct Columns {
+    shapes: Vec<Shape>,
+    normals: Vec<[Vec3; 3]>,
+    uvs: Vec<[Vec2; 3]>,
+    tangents: Vec<[Vec4; 3]>,
+}
+
+/// Which vertex attributes some primitive of the scene has (and so which [`Columns`] are filled).
+#[derive(Clone, Copy)]
+struct Attributes {
+    normals: bool,
+    uvs: bool,
+    tangents: bool,
+}
+
+impl Columns {
+    /// Appends a primitive without vertex attributes (a sphere).
+    fn push_plain(&mut self, shape: Shape, attributes: Attributes) {
+        self.shapes.push(shape);
+        if attributes.normals {
+            self.normals.push([Vec3::ZERO; 3]);
+        }
+        if attributes.uvs {
+            self.uvs.push([Vec2::ZERO; 3]);
+        }
+        if attributes.tangents {
+            self.tangents.push([Vec4::ZERO; 3]);
+        }
+    }
+
+    /// The column `unordered` in BVH slot order, or zeros if the scene lacks it.
+    fn ordered<T: Copy + Send + Sync + bytemuck::Zeroable>(
+        unordered: &[T],
+        order: &[u32],
+    ) -> Vec<T> {
+        if unordered.is_empty() {
+            bytemuck::zeroed_vec(order.len())
+        } else {
+            order.par_iter().map(|&i| unordered[i as usize]).collect()
+        }
+    }
 }
 
 /// Flattens the world into a [`FlatScene`]. `path` names the scene in errors.
@@ -136,8 +184,14 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         .query::<&MaterialTextures>()
         .iter()
         .any(|t| t.normal.is_some());
+    let attributes = Attributes {
+        normals: world.query::<&Mesh>().iter().any(|m| !m.normals.is_empty()),
+        uvs: world.query::<&Mesh>().iter().any(|m| !m.uvs.is_empty()),
+        tangents: normal_mapped,
+    };
 
-    let mut prims: Vec<Primitive> = Vec::new();
+    let mut groups: Vec<Group> = Vec::new();
+    let mut columns = Columns::default();
     let mut warnings = Vec::new();
     for (name, transform, mesh, material, textures, tangents, emitter) in world
         .query::<(
@@ -166,23 +220,20 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             Some(_) => Some(tangents),
             None => None,
         };
+        groups.push(Group {
+            first: columns.shapes.len(),
+            material,
+            emitter,
+            emission_texture,
+        });
         let skipped = flatten_mesh(
             mesh,
             &transform,
             tangents,
             path,
             name,
-            |shape, normals, uvs, tangents| {
-                prims.push(Primitive {
-                    shape,
-                    normals,
-                    uvs,
-                    tangents,
-                    material,
-                    emitter,
-                    emission_texture,
-                })
-            },
+            attributes,
+            &mut columns,
         )?;
         if skipped > 0 {
             let kind = if emitter.is_some() { " emitting" } else { "" };
@@ -230,22 +281,17 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         }
         let material = material_index(material, None, &mut interner);
         let emitter = validate_emitter(emitter, path, name)?;
-        prims.push(Primitive {
-            shape: Shape::Sphere(geom),
-            normals: [Vec3::ZERO; 3],
-            uvs: [Vec2::ZERO; 3],
-            tangents: [Vec4::ZERO; 3],
+        groups.push(Group {
+            first: columns.shapes.len(),
             material,
             emitter,
             emission_texture: None,
         });
+        columns.push_plain(Shape::Sphere(geom), attributes);
     }
 
-    let delta_lights = punctual_lights(world, &prims, path)?;
-
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
-    let shapes_unordered: Vec<Shape> = prims.par_iter().map(|p| p.shape).collect();
-    let (bvh, order) = bvh::build_bvh(&shapes_unordered).ok_or_else(|| {
+    let (bvh, order) = bvh::build_bvh(&columns.shapes).ok_or_else(|| {
         Error::input(
             path,
             None,
@@ -255,47 +301,62 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             ),
         )
     })?;
-    let ordered = || order.par_iter().map(|&i| &prims[i as usize]);
-    // Lights come from the primitives, not the slots: a pre-split triangle owns several slots
-    // but is one light.
+    let delta_lights = punctual_lights(world, bvh.bounds(), path)?;
+    // Lights come from the primitives, not the slots: light `first_light[g] + k` is the
+    // `k`-th primitive of group `g`.
     let mut area_lights = Vec::new();
     let mut textured_emission = Vec::new();
-    let light_of_primitive: Vec<u32> = prims
-        .iter()
-        .map(|p| match p.emitter {
-            Some(mut e) => {
-                // A textured emitter is chosen by its mean radiance; shading applies the texel.
-                textured_emission.push(p.emission_texture.map(|(texture, mean)| {
-                    let textured = TexturedEmission {
-                        texture,
-                        radiance: e.radiance,
-                        inverse_mean: materials::inverse_or_zero(mean),
-                        uvs: p.uvs,
-                    };
-                    e.radiance *= mean;
-                    textured
-                }));
-                area_lights.push(AreaLight::new(p.shape, e.radiance, e.two_sided));
-                (area_lights.len() - 1) as u32
-            }
-            None => NO_EMITTER,
-        })
-        .collect();
-    let emitter = order
+    let mut first_light = Vec::with_capacity(groups.len());
+    for (g, group) in groups.iter().enumerate() {
+        let Some(emitter) = group.emitter else {
+            first_light.push(NO_EMITTER);
+            continue;
+        };
+        first_light.push(area_lights.len() as u32);
+        let end = groups
+            .get(g + 1)
+            .map_or(columns.shapes.len(), |next| next.first);
+        for prim in group.first..end {
+            let mut radiance = emitter.radiance;
+            // A textured emitter is chosen by its mean radiance; shading applies the texel.
+            textured_emission.push(group.emission_texture.map(|(texture, mean)| {
+                radiance *= mean;
+                TexturedEmission {
+                    texture,
+                    radiance: emitter.radiance,
+                    inverse_mean: materials::inverse_or_zero(mean),
+                    uvs: columns.uvs[prim],
+                }
+            }));
+            let shape = columns.shapes[prim];
+            area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
+        }
+    }
+    let group_of = |prim: u32| groups.partition_point(|g| g.first <= prim as usize) - 1;
+    let (material, emitter) = order
         .par_iter()
-        .map(|&i| light_of_primitive[i as usize])
-        .collect();
-    let source_index = order.clone();
+        .map(|&prim| {
+            let g = group_of(prim);
+            let light = match first_light[g] {
+                NO_EMITTER => NO_EMITTER,
+                first => first + prim - groups[g].first as u32,
+            };
+            (groups[g].material, light)
+        })
+        .unzip();
     Ok(FlatScene {
-        shapes: ordered().map(|p| p.shape).collect(),
-        vertex_normals: ordered().map(|p| p.normals).collect(),
-        vertex_uvs: ordered().map(|p| p.uvs).collect(),
+        shapes: order
+            .par_iter()
+            .map(|&i| columns.shapes[i as usize])
+            .collect(),
+        vertex_normals: Columns::ordered(&columns.normals, &order),
+        vertex_uvs: Columns::ordered(&columns.uvs, &order),
         vertex_tangents: if normal_mapped {
-            ordered().map(|p| p.tangents).collect()
+            Columns::ordered(&columns.tangents, &order)
         } else {
             Vec::new()
         },
-        material: ordered().map(|p| p.material).collect(),
+        material,
         emitter,
         material_textures: materials.iter().map(|m| m.1).collect(),
         materials: materials.iter().map(|m| m.0).collect(),
@@ -307,7 +368,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             Vec::new()
         },
         bvh,
-        source_index,
+        source_index: order,
         camera,
         warnings,
     })
@@ -317,20 +378,10 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
 /// the scene's bounding sphere casts, so that it is chosen in proportion to what it delivers.
 fn punctual_lights(
     world: &hecs::World,
-    prims: &[Primitive],
+    scene_bounds: Option<Aabb>,
     path: &Path,
 ) -> Result<Vec<DeltaLight>> {
-    let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
-    for p in prims {
-        let b = p.shape.aabb();
-        lo = lo.min(b.min);
-        hi = hi.max(b.max);
-    }
-    let scene_radius = if lo.x <= hi.x {
-        ((hi - lo).length() * 0.5).max(1e-3)
-    } else {
-        1.0
-    };
+    let scene_radius = scene_bounds.map_or(1.0, |b| ((b.max - b.min).length() * 0.5).max(1e-3));
     let mut out = Vec::new();
     for (name, transform, light) in world
         .query::<(Option<&Name>, Option<&Transform>, &PunctualLight)>()
@@ -436,16 +487,18 @@ fn validate_emitter(e: Option<&Emitter>, path: &Path, name: &str) -> Result<Opti
     }
 }
 
-/// Emits each valid world-space triangle of `mesh`; returns how many degenerate ones were skipped.
-/// `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))` with the file's tangents,
-/// `Some(None)` to make them per triangle.
+/// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
+/// that `attributes` asks for, zero where the mesh has none); returns how many degenerate
+/// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
+/// with the file's tangents, `Some(None)` to make them per triangle.
 fn flatten_mesh(
     mesh: &Mesh,
     world_from_object: &crate::math::Affine3A,
     tangents: Option<Option<&VertexTangents>>,
     path: &Path,
     name: &str,
-    mut emit: impl FnMut(Shape, [Vec3; 3], [Vec2; 3], [Vec4; 3]),
+    attributes: Attributes,
+    columns: &mut Columns,
 ) -> Result<usize> {
     let at = || Some(format!("mesh '{name}'"));
     let n = mesh.positions.len();
@@ -463,7 +516,7 @@ fn flatten_mesh(
             format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
         ));
     }
-    if let Some(bad) = mesh.positions.iter().position(|p| !p.is_finite()) {
+    if let Some(bad) = mesh.positions.par_iter().position_first(|p| !p.is_finite()) {
         return Err(Error::input(
             path,
             at(),
@@ -474,10 +527,10 @@ fn flatten_mesh(
     let flips = world_from_object.matrix3.determinant() < 0.0;
     let world: Vec<Vec3A> = mesh
         .positions
-        .iter()
+        .par_iter()
         .map(|&p| world_from_object.transform_point3a(p.into()))
         .collect();
-    if let Some(bad) = world.iter().position(|p| !p.is_finite()) {
+    if let Some(bad) = world.par_iter().position_first(|p| !p.is_finite()) {
         return Err(Error::input(
             path,
             at(),
@@ -487,74 +540,133 @@ fn flatten_mesh(
             ),
         ));
     }
-    let mut skipped = 0;
-    for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
-        if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
-            return Err(Error::input(
-                path,
-                at(),
-                format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
-            ));
-        }
-        let [a, b, c] = if flips { [a, c, b] } else { [a, b, c] };
-        let geom = TriangleGeom::new(world[a as usize], world[b as usize], world[c as usize]);
+    // Vertex indices in the winding that keeps the front face under mirroring transforms.
+    let corners = |t: usize| {
+        let [a, b, c] = mesh.indices[t];
+        if flips { [a, c, b] } else { [a, b, c] }
+    };
+    // The triangle if it is valid and not degenerate (index out of range, area overflowing
+    // f32 or zero: `None`; the slow path below tells these apart).
+    let triangle = |t: usize| {
+        let [a, b, c] = corners(t);
+        let geom = TriangleGeom::new(
+            *world.get(a as usize)?,
+            *world.get(b as usize)?,
+            *world.get(c as usize)?,
+        );
         let double_area = geom.normal_unnormalized().length();
-        if !double_area.is_finite() {
-            // Finite vertices, but far enough apart (~1e19) that the area overflows f32: the
-            // triangle cannot be intersected or sampled, and skipping it would change the image.
-            return Err(Error::input(
-                path,
-                at(),
-                format!(
-                    "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
-                     are too far apart (scale the model down)",
-                    Vec3::from(world[a as usize]),
-                    Vec3::from(world[b as usize]),
-                    Vec3::from(world[c as usize])
-                ),
-            ));
+        (double_area > 0.0 && double_area.is_finite()).then_some(geom)
+    };
+
+    // --- Geometry, in one parallel pass when every triangle is kept (the common case).
+    let first = columns.shapes.len();
+    columns.shapes.par_extend(
+        (0..mesh.indices.len())
+            .into_par_iter()
+            .filter_map(|t| triangle(t).map(Shape::Triangle)),
+    );
+    let kept = columns.shapes.len() - first;
+    let kept_triangles: Option<Vec<u32>> = if kept == mesh.indices.len() {
+        None
+    } else {
+        for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
+            if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
+                ));
+            }
+            let p = corners(t).map(|i| world[i as usize]);
+            let geom = TriangleGeom::new(p[0], p[1], p[2]);
+            if !geom.normal_unnormalized().length().is_finite() {
+                // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
+                // the triangle cannot be intersected or sampled, and skipping it would change
+                // the image.
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!(
+                        "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
+                         are too far apart (scale the model down)",
+                        Vec3::from(p[0]),
+                        Vec3::from(p[1]),
+                        Vec3::from(p[2])
+                    ),
+                ));
+            }
         }
-        if !(double_area > 0.0) {
-            skipped += 1;
-            continue;
+        Some(
+            (0..mesh.indices.len() as u32)
+                .into_par_iter()
+                .filter(|&t| triangle(t as usize).is_some())
+                .collect(),
+        )
+    };
+    // Appends `attribute(t)` for every kept triangle `t` to `column`.
+    fn extend<T: Send>(
+        column: &mut Vec<T>,
+        kept_triangles: &Option<Vec<u32>>,
+        count: usize,
+        attribute: impl Fn(usize) -> T + Sync + Send,
+    ) {
+        match kept_triangles {
+            None => column.par_extend((0..count).into_par_iter().map(attribute)),
+            Some(kept) => column.par_extend(kept.par_iter().map(|&t| attribute(t as usize))),
         }
-        let normals = if mesh.normals.is_empty() {
-            [Vec3::ZERO; 3]
-        } else {
-            [a, b, c].map(|i| {
-                Vec3::from(normal_matrix * Vec3A::from(mesh.normals[i as usize]))
-                    .normalize_or_zero()
-            })
-        };
+    }
+
+    // --- Vertex attributes of the kept triangles.
+    let count = mesh.indices.len();
+    let normals = |t: usize| {
+        if mesh.normals.is_empty() {
+            return [Vec3::ZERO; 3];
+        }
+        let normals = corners(t).map(|i| {
+            Vec3::from(normal_matrix * Vec3A::from(mesh.normals[i as usize])).normalize_or_zero()
+        });
         // A shading normal that could not be normalised falls back to flat shading.
-        let normals = if normals.contains(&Vec3::ZERO) {
+        if normals.contains(&Vec3::ZERO) {
             [Vec3::ZERO; 3]
         } else {
             normals
-        };
-        let uvs = if mesh.uvs.is_empty() {
+        }
+    };
+    let uvs = |t: usize| {
+        if mesh.uvs.is_empty() {
             [Vec2::ZERO; 3]
         } else {
-            [a, b, c].map(|i| mesh.uvs[i as usize])
-        };
+            corners(t).map(|i| mesh.uvs[i as usize])
+        }
+    };
+    if attributes.normals {
+        extend(&mut columns.normals, &kept_triangles, count, normals);
+    }
+    if attributes.uvs {
+        extend(&mut columns.uvs, &kept_triangles, count, uvs);
+    }
+    if attributes.tangents {
         // Tangents: the file's (the linear part carries them; a mirroring transform flips
         // the handedness), else one per triangle from the UVs.
-        let tangents = match tangents {
+        let tangents = |t: usize| match tangents {
             None => [Vec4::ZERO; 3],
-            Some(Some(VertexTangents(t))) if t.len() == n && normals[0] != Vec3::ZERO => [a, b, c]
-                .map(|i| {
-                    let t = t[i as usize];
+            Some(Some(VertexTangents(tangents)))
+                if tangents.len() == n && normals(t)[0] != Vec3::ZERO =>
+            {
+                corners(t).map(|i| {
+                    let t = tangents[i as usize];
                     let xyz = world_from_object.matrix3 * Vec3A::from(t.truncate());
                     let w = if (t.w < 0.0) != flips { -1.0 } else { 1.0 };
                     xyz.normalize_or_zero().extend(w)
-                }),
+                })
+            }
             Some(_) => {
-                let n = geom.normal_unnormalized().normalize();
-                let p = [world[a as usize], world[b as usize], world[c as usize]];
-                [materials::triangle_tangent(p, uvs, n); 3]
+                let p = corners(t).map(|i| world[i as usize]);
+                let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+                [materials::triangle_tangent(p, uvs(t), n); 3]
             }
         };
-        emit(Shape::Triangle(geom), normals, uvs, tangents);
+        extend(&mut columns.tangents, &kept_triangles, count, tangents);
     }
-    Ok(skipped)
+    Ok(count - kept)
 }
