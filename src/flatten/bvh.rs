@@ -22,12 +22,14 @@ pub const MAX_DEPTH: usize = 64;
 const SHALLOW_DEPTH: usize = 10;
 /// Primitives per leaf at most, in large scenes: fewer, fuller leaves mean fewer nodes and
 /// cache misses (measured on the 1.3M-triangle ray sets: 10-20% faster than 1 or 2).
-/// Large scenes are built with obvhs's `fast_build` preset (PLOC with a short search and a
-/// little reinsertion): on the 1.3M-triangle ray sets it builds about 20% faster than
-/// `medium_build` for the same ray rates within noise, while `fastest_build` loses ~30% on
-/// primary rays. Small scenes use `very_slow_build` (reinsertion over every node): their
-/// build time is negligible, and in the seed room it halves the nodes a shadow packet visits
-/// (8.6 -> 4.2) and cuts those of a closest-hit ray from 7.2 to 4.7.
+/// Large scenes are built with obvhs's `fast_build` preset (PLOC with a short search)
+/// without its reinsertion pass: on the 1.3M-triangle ray sets it builds about 20% faster
+/// than `medium_build` for the same ray rates within noise, while `fastest_build` loses ~30%
+/// on primary rays; reinsertion cost 50-90 ms there for the same primitive tests per ray and
+/// ray rates within noise (2% less inner-node surface area). Small scenes use
+/// `very_slow_build` (reinsertion over every node): their build time is negligible, and in
+/// the seed room it halves the nodes a shadow packet visits (8.6 -> 4.2) and cuts those of a
+/// closest-hit ray from 7.2 to 4.7.
 const MAX_LEAF_SIZE: u32 = 4;
 /// Scenes with fewer primitives get one primitive per leaf: they are rooms of large,
 /// overlapping triangles, where merging leaves makes every ray test most of the walls
@@ -87,7 +89,11 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
     let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
         (BvhBuildParams::very_slow_build(), 1)
     } else {
-        (BvhBuildParams::fast_build(), MAX_LEAF_SIZE)
+        let params = BvhBuildParams {
+            reinsertion_batch_ratio: 0.0,
+            ..BvhBuildParams::fast_build()
+        };
+        (params, MAX_LEAF_SIZE)
     };
     let aabbs: Vec<Aabb> = shapes.par_iter().map(Shape::aabb).collect();
     let bvh2 = build_bvh2(&aabbs, params);
