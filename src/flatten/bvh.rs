@@ -97,7 +97,12 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
     };
     let aabbs: Vec<Aabb> = shapes.par_iter().map(Shape::aabb).collect();
     let bvh2 = build_bvh2(&aabbs, params);
-    let mut bvh = Bvh4::default();
+    let mut bvh = Bvh4 {
+        // About a third of the binary nodes with one primitive per leaf, a sixth with four
+        // (room enough that the vector never grows; pages never touched cost nothing).
+        nodes: Vec::with_capacity(bvh2.nodes.len() / 5 + 1),
+        depth: 0,
+    };
     let mut order = Vec::with_capacity(shapes.len());
     if !shapes.is_empty() {
         let leaf_sizes = leaf_sizes(&bvh2, max_leaf_size, params.collapse_traversal_cost);
@@ -140,33 +145,16 @@ fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
 /// nodes, each costing `node_cost` primitive tests), so that far-apart primitives stay apart.
 fn leaf_sizes(bvh2: &Bvh2, max_leaf_size: u32, node_cost: f32) -> Vec<u32> {
     let nodes = &bvh2.nodes;
-    // Children before parents: PLOC stores every parent before its children; reinsertion
-    // moves nodes, after which a depth-first order is made.
-    let post_order: Vec<u32> = if bvh2.children_are_ordered_after_parents {
-        (0..nodes.len() as u32).rev().collect()
-    } else {
-        let mut pre_order = Vec::with_capacity(nodes.len());
-        let mut stack = vec![0u32];
-        while let Some(n) = stack.pop() {
-            pre_order.push(n);
-            let node = &nodes[n as usize];
-            if !node.is_leaf() {
-                stack.extend([node.first_index, node.first_index + 1]);
-            }
-        }
-        pre_order.reverse();
-        pre_order
-    };
     let mut size = vec![0u32; nodes.len()];
     let mut cost = vec![0f32; nodes.len()];
-    for &n in &post_order {
+    let visit = |n: u32| {
         let n = n as usize;
         let node = &nodes[n];
         let area = node.aabb().half_area();
         if node.is_leaf() {
             size[n] = node.prim_count;
             cost[n] = area * node.prim_count as f32;
-            continue;
+            return;
         }
         let (left, right) = (node.first_index as usize, node.first_index as usize + 1);
         let split_cost = area * node_cost + cost[left] + cost[right];
@@ -178,6 +166,22 @@ fn leaf_sizes(bvh2: &Bvh2, max_leaf_size: u32, node_cost: f32) -> Vec<u32> {
         } else {
             cost[n] = split_cost;
         }
+    };
+    // Children before parents: PLOC stores every parent before its children; reinsertion
+    // moves nodes, after which a depth-first order is made.
+    if bvh2.children_are_ordered_after_parents {
+        (0..nodes.len() as u32).rev().for_each(visit);
+    } else {
+        let mut pre_order = Vec::with_capacity(nodes.len());
+        let mut stack = vec![0u32];
+        while let Some(n) = stack.pop() {
+            pre_order.push(n);
+            let node = &nodes[n as usize];
+            if !node.is_leaf() {
+                stack.extend([node.first_index, node.first_index + 1]);
+            }
+        }
+        pre_order.into_iter().rev().for_each(visit);
     }
     size
 }

@@ -545,28 +545,23 @@ fn flatten_mesh(
         let [a, b, c] = mesh.indices[t];
         if flips { [a, c, b] } else { [a, b, c] }
     };
-    // The triangle if it is valid and not degenerate (index out of range, area overflowing
-    // f32 or zero: `None`; the slow path below tells these apart).
-    let triangle = |t: usize| {
-        let [a, b, c] = corners(t);
-        let geom = TriangleGeom::new(
-            *world.get(a as usize)?,
-            *world.get(b as usize)?,
-            *world.get(c as usize)?,
-        );
-        let double_area = geom.normal_unnormalized().length();
-        (double_area > 0.0 && double_area.is_finite()).then_some(geom)
+    let geometry = |t: usize| {
+        let p = corners(t).map(|i| world[i as usize]);
+        TriangleGeom::new(p[0], p[1], p[2])
+    };
+    // Whether the triangle is kept (else: an index out of range, an area overflowing f32 or
+    // a zero area; the slow path below tells these apart).
+    let kept = |t: usize| {
+        corners(t).iter().all(|&i| (i as usize) < n) && {
+            let double_area = geometry(t).normal_unnormalized().length();
+            double_area > 0.0 && double_area.is_finite()
+        }
     };
 
-    // --- Geometry, in one parallel pass when every triangle is kept (the common case).
-    let first = columns.shapes.len();
-    columns.shapes.par_extend(
-        (0..mesh.indices.len())
-            .into_par_iter()
-            .filter_map(|t| triangle(t).map(Shape::Triangle)),
-    );
-    let kept = columns.shapes.len() - first;
-    let kept_triangles: Option<Vec<u32>> = if kept == mesh.indices.len() {
+    // --- Which triangles are kept: in the common case all, found by one parallel count.
+    let count = mesh.indices.len();
+    let kept_count = (0..count).into_par_iter().filter(|&t| kept(t)).count();
+    let kept_triangles: Option<Vec<u32>> = if kept_count == count {
         None
     } else {
         for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
@@ -577,29 +572,26 @@ fn flatten_mesh(
                     format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
                 ));
             }
-            let p = corners(t).map(|i| world[i as usize]);
-            let geom = TriangleGeom::new(p[0], p[1], p[2]);
-            if !geom.normal_unnormalized().length().is_finite() {
+            if !geometry(t).normal_unnormalized().length().is_finite() {
                 // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
                 // the triangle cannot be intersected or sampled, and skipping it would change
                 // the image.
+                let p = corners(t).map(|i| Vec3::from(world[i as usize]));
                 return Err(Error::input(
                     path,
                     at(),
                     format!(
                         "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
                          are too far apart (scale the model down)",
-                        Vec3::from(p[0]),
-                        Vec3::from(p[1]),
-                        Vec3::from(p[2])
+                        p[0], p[1], p[2]
                     ),
                 ));
             }
         }
         Some(
-            (0..mesh.indices.len() as u32)
+            (0..count as u32)
                 .into_par_iter()
-                .filter(|&t| triangle(t as usize).is_some())
+                .filter(|&t| kept(t as usize))
                 .collect(),
         )
     };
@@ -616,8 +608,10 @@ fn flatten_mesh(
         }
     }
 
-    // --- Vertex attributes of the kept triangles.
-    let count = mesh.indices.len();
+    // --- Geometry and vertex attributes of the kept triangles, written in place.
+    extend(&mut columns.shapes, &kept_triangles, count, |t| {
+        Shape::Triangle(geometry(t))
+    });
     let normals = |t: usize| {
         if mesh.normals.is_empty() {
             return [Vec3::ZERO; 3];
@@ -668,5 +662,5 @@ fn flatten_mesh(
         };
         extend(&mut columns.tangents, &kept_triangles, count, tangents);
     }
-    Ok(count - kept)
+    Ok(count - kept_count)
 }
