@@ -110,7 +110,7 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
             bvh2: &bvh2,
             leaf_sizes: &leaf_sizes,
         };
-        bvh.depth = tree.collapse(&[0], &mut bvh.nodes, &mut order);
+        bvh.depth = tree.collapse(&[0], &mut bvh.nodes, &mut order, MAX_DEPTH);
     }
     (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
 }
@@ -200,8 +200,19 @@ impl BinaryTree<'_> {
     /// Appends the 4-wide node made of the binary nodes `children` (expanded until there are
     /// four or only leaves remain) and, recursively, its subtrees; appends the primitives of
     /// its leaves to `order`, so that every leaf is a contiguous run of slots. Returns the
-    /// subtree's depth.
-    fn collapse(&self, children: &[u32], nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
+    /// subtree's depth, or stops with a depth above [`MAX_DEPTH`] when `levels_left` runs out:
+    /// such a tree is refused anyway, and on degenerate input (many identical triangles) the
+    /// binary tree can be a chain as long as the input, which would overflow the stack.
+    fn collapse(
+        &self,
+        children: &[u32],
+        nodes: &mut Vec<Node4>,
+        order: &mut Vec<u32>,
+        levels_left: usize,
+    ) -> usize {
+        if levels_left == 0 {
+            return MAX_DEPTH + 1;
+        }
         let bvh2 = &self.bvh2.nodes;
         let mut lanes = ArrayVec4::from(children);
         while lanes.len() < 4 {
@@ -246,7 +257,8 @@ impl BinaryTree<'_> {
             } else {
                 nodes[index].child[k] = nodes.len() as u32;
                 let subtree = [b.first_index, b.first_index + 1];
-                depth = depth.max(1 + self.collapse(&subtree, nodes, order));
+                let below = self.collapse(&subtree, nodes, order, levels_left - 1);
+                depth = depth.max(1 + below);
             }
         }
         depth
@@ -937,6 +949,21 @@ mod tests {
                 .fold(0, |m, k| m | 1 << k)
         });
         assert_eq!(occluded, 0b11);
+    }
+
+    #[test]
+    fn a_chain_of_identical_triangles_is_refused_without_deep_recursion() {
+        // Copies of one triangle make the binary tree a long chain; the collapse must give up
+        // at the depth limit instead of recursing down the whole chain, which would overflow
+        // this thread's small stack (200,000 copies overflowed the main thread's 8 MiB).
+        let tri = Shape::Triangle(TriangleGeom::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y));
+        let refused = std::thread::Builder::new()
+            .stack_size(256 * 1024)
+            .spawn(move || build_bvh(&vec![tri; 8_000]).is_none())
+            .unwrap()
+            .join()
+            .unwrap();
+        assert!(refused);
     }
 
     #[test]
