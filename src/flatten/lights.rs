@@ -186,12 +186,6 @@ impl LightSamples {
     pub fn wi(&self, k: usize) -> Vec3A {
         Vec3A::new(self.wi[0][k], self.wi[1][k], self.wi[2][k])
     }
-
-    /// Incident radiance over density of lane `k` (see [`LightSamples::scale`]).
-    #[inline(always)]
-    pub fn weight(&self, k: usize) -> Rgb {
-        self.radiance[k] * self.scale[k]
-    }
 }
 
 /// What a punctual light sends toward a point: the direction to it, its distance and the
@@ -202,7 +196,7 @@ struct PunctualSample {
     weight: Rgb,
 }
 
-/// [`LightSample::area_light`] of a punctual light.
+/// [`LightSamples::area_light`] of a punctual light.
 pub const NOT_AREA_LIGHT: u32 = u32::MAX;
 
 /// All lights (area lights first, then punctual ones) with the cumulative distribution of
@@ -400,7 +394,12 @@ mod tests {
         let mut s = LightSamples::default();
         table.sample(p, &[(u_pick, u)], &mut s);
         let wi = s.wi(0);
-        (p + s.distance[0] * wi, wi, s.distance[0], s.weight(0))
+        (
+            p + s.distance[0] * wi,
+            wi,
+            s.distance[0],
+            s.radiance[0] * s.scale[0],
+        )
     }
 
     #[test]

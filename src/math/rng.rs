@@ -12,7 +12,7 @@ pub const DEFAULT_SEED: u64 = 0x5EED_2026;
 /// Random-number dimensions used within one bounce of a path.
 ///
 /// Shadow ray `j` of a bounce uses dimension `SHADOW_FIRST + j`, one hash split into its
-/// three numbers (see [`uniform3`]), so any number of shadow rays fits without overlapping.
+/// three numbers (see [`uniform3_salted`]), so any number of shadow rays fits without overlapping.
 pub mod dim {
     /// Pixel jitter of the camera ray (2 numbers, bounce 0 only).
     pub const PIXEL_JITTER: u32 = 0;
@@ -70,15 +70,10 @@ pub fn uniform(key: u64, bounce: u32, dimension: u32) -> f32 {
     unit_float(bits(key, bounce, dimension), 40, 24)
 }
 
-/// Three uniform numbers from the one hash of `dimension`, for a light sample: the first
-/// (which light) with 24 bits, the other two (where on it) with 20 bits each. One hash
-/// instead of three matters: every hit takes N of them.
-#[inline]
-pub fn uniform3(key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
-    uniform3_salted(key, dimension_salt(bounce, dimension))
-}
-
-/// [`uniform3`] with the dimension's salt computed beforehand: the same numbers.
+/// Three uniform numbers from the one hash of a dimension (given by its salt, see
+/// [`dimension_salt`]), for a light sample: the first (which light) with 24 bits, the other
+/// two (where on it) with 20 bits each. One hash instead of three matters: every hit takes N
+/// of them.
 #[inline]
 pub fn uniform3_salted(key: u64, salt: u64) -> (f32, Vec2) {
     let h = mix64(key ^ salt);
