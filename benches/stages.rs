@@ -120,6 +120,7 @@ fn prepare(scene: &FlatScene) -> Prepared {
     let params = ShadeParams {
         bounce: 0,
         shadow_rays: SHADOW_RAYS,
+        mis: true, // the renderer's default
         roulette_min_bounces: 3,
         max_depth: 1024,
     };
