@@ -60,7 +60,7 @@ pub fn render(
     let start = Instant::now();
     let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
     let pixel_count = settings.width * settings.height;
-    let batch_size = settings.batch_size.min(pixel_count);
+    let batch_size = paths_per_batch(settings);
     let mut film = Film::new(settings.width, settings.height);
     let mut stats = RenderStats::default();
     let mut b = Buffers {
@@ -144,10 +144,50 @@ pub fn render(
     Ok((film, stats))
 }
 
+/// Most shadow-ray slots a batch holds (32 bytes each, 32 MiB in all): the default 65,536
+/// paths with up to 16 shadow rays per hit, fewer paths with more.
+const MAX_SHADOW_SLOTS: u32 = 1 << 20;
+
+/// Paths per batch: the settings' batch size, cut to the image and to the shadow-ray budget,
+/// so that memory stays bounded whatever the number of shadow rays (the image never depends
+/// on the batch size).
+fn paths_per_batch(settings: &RenderSettings) -> u32 {
+    let shadow_slots_per_path = settings.shadow_rays.max(1);
+    settings
+        .batch_size
+        .min(settings.width * settings.height)
+        .min((MAX_SHADOW_SLOTS / shadow_slots_per_path).max(1))
+}
+
 /// Runs `f`, adding its duration to `total`.
 fn timed<T>(total: &mut Duration, f: impl FnOnce() -> T) -> T {
     let t = Instant::now();
     let r = f();
     *total += t.elapsed();
     r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn many_shadow_rays_shrink_the_batch_to_the_memory_budget() {
+        let settings = |shadow_rays, width| RenderSettings {
+            shadow_rays,
+            width,
+            height: width,
+            ..RenderSettings::default()
+        };
+        // The seed's 15 shadow rays keep the full default batch; the image can cut it.
+        assert_eq!(paths_per_batch(&settings(15, 800)), 1 << 16);
+        assert_eq!(paths_per_batch(&settings(15, 100)), 10_000);
+        // The most shadow rays: the shadow buffers stay within the budget.
+        let most = settings(crate::settings::MAX_SHADOW_RAYS, 800);
+        let paths = paths_per_batch(&most);
+        assert!(
+            paths >= 1 && paths * most.shadow_rays <= MAX_SHADOW_SLOTS,
+            "{paths}"
+        );
+    }
 }
