@@ -3,10 +3,13 @@
 //! reference answers.
 //!
 //! ```text
-//! cargo run --release --example cast_rays -- DIR SCENE [--repeats N]
+//! cargo run --release --example cast_rays -- DIR SCENE [--repeats N] [--limit N] [--sets a,b]
 //! ```
 //! `DIR` is the output directory of `raysets.py gen` (+ `bench --save-ref`); `SCENE` is
-//! `room`, `mesh1m` or `mesh5m`.
+//! `room`, `mesh1m` or `mesh5m`. `--limit N` casts only the first `N` rays of each set and
+//! `--sets` picks sets (`primary,bounce,shadow` by default): a short run for instruction
+//! counts, e.g. `valgrind --tool=callgrind --toggle-collect='*cast_closest*'` (the tracing
+//! loops are the non-inlined `cast_closest` and `cast_occluded`).
 
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -45,9 +48,10 @@ fn u32s(bytes: &[u8]) -> Vec<u32> {
 /// One ray: origin, direction, t_max (t_min is always 0 in these sets).
 type Ray = (Vec3A, Vec3A, f32);
 
-fn read_rays(path: &Path) -> Vec<Ray> {
+fn read_rays(path: &Path, limit: usize) -> Vec<Ray> {
     f32s(&read_npy(path))
         .chunks_exact(8)
+        .take(limit)
         .map(|r| {
             (
                 Vec3A::new(r[0], r[1], r[2]),
@@ -91,6 +95,24 @@ fn median_seconds(threads: usize, repeats: usize, f: impl Fn() + Sync + Send) ->
     (wall[wall.len() / 2], cpu[cpu.len() / 2])
 }
 
+/// Casts closest-hit rays; returns how many hit. Not inlined, so that profilers can select it.
+#[inline(never)]
+fn cast_closest(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
+    rays.par_iter()
+        .with_min_len(1024)
+        .filter(|&&(o, d, t)| scene.closest_hit(o, d, t).is_some())
+        .count()
+}
+
+/// Casts occlusion rays; returns how many are blocked. Not inlined (see [`cast_closest`]).
+#[inline(never)]
+fn cast_occluded(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
+    rays.par_iter()
+        .with_min_len(1024)
+        .filter(|&&(o, d, t)| scene.occluded(o, d, t))
+        .count()
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
@@ -103,6 +125,17 @@ fn main() {
         .iter()
         .position(|a| a == "--repeats")
         .map_or(5, |i| args[i + 1].parse().expect("--repeats N"));
+    let limit = args
+        .iter()
+        .position(|a| a == "--limit")
+        .map_or(usize::MAX, |i| args[i + 1].parse().expect("--limit N"));
+    let sets: Vec<String> = args
+        .iter()
+        .position(|a| a == "--sets")
+        .map_or("primary,bounce,shadow", |i| args[i + 1].as_str())
+        .split(',')
+        .map(str::to_string)
+        .collect();
     let threads = rayon::current_num_threads();
 
     // --- The scene through the project's own path: ECS world -> flatten (BVH build included).
@@ -149,13 +182,13 @@ fn main() {
         "{:<8} {:>10} {:>16} {:>16} {:>11}",
         "set", "Mrays/s", "1 thread Mrays/s", "Mrays/CPU-s", "agreement"
     );
-    for set in ["primary", "bounce", "shadow"] {
+    for set in sets.iter().map(String::as_str) {
         let rays_file = if set == "primary" {
             dir.join("rays_primary.npy")
         } else {
             dir.join(format!("rays_{scene_name}_{set}.npy"))
         };
-        let rays = read_rays(&rays_file);
+        let rays = read_rays(&rays_file, limit);
         let n = rays.len();
         let (agreement, trace): (f64, Box<dyn Fn() + Sync + Send>) = if set == "shadow" {
             let reference = read_npy(&dir.join(format!("ref_{scene_name}_shadow_occluded.npy")));
@@ -173,12 +206,7 @@ fn main() {
             (
                 agree as f64 / n as f64,
                 Box::new(move || {
-                    let hits: usize = rays
-                        .par_iter()
-                        .with_min_len(1024)
-                        .filter(|&&(o, d, t)| scene.occluded(o, d, t))
-                        .count();
-                    std::hint::black_box(hits);
+                    std::hint::black_box(cast_occluded(scene, rays));
                 }),
             )
         } else {
@@ -208,12 +236,7 @@ fn main() {
             (
                 agree as f64 / n as f64,
                 Box::new(move || {
-                    let hits: usize = rays
-                        .par_iter()
-                        .with_min_len(1024)
-                        .filter(|&&(o, d, t)| scene.closest_hit(o, d, t).is_some())
-                        .count();
-                    std::hint::black_box(hits);
+                    std::hint::black_box(cast_closest(scene, rays));
                 }),
             )
         };

@@ -62,6 +62,9 @@ pub struct Bvh4 {
     pub nodes: Vec<Node4>,
     /// Depth of the tree (a root alone has depth 1).
     pub depth: usize,
+    /// Per node, bit `k` set when lane `k` is a leaf (`count[k] > 0`), for the closest-hit
+    /// traversal: one load instead of four compares per node.
+    pub leaf_lanes: Vec<u8>,
 }
 
 impl Bvh4 {
@@ -102,6 +105,7 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
         // (room enough that the vector never grows; pages never touched cost nothing).
         nodes: Vec::with_capacity(bvh2.nodes.len() / 5 + 1),
         depth: 0,
+        leaf_lanes: Vec::new(),
     };
     let mut order = Vec::with_capacity(shapes.len());
     if !shapes.is_empty() {
@@ -111,6 +115,11 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
             leaf_sizes: &leaf_sizes,
         };
         bvh.depth = tree.collapse(&[0], &mut bvh.nodes, &mut order, MAX_DEPTH);
+        bvh.leaf_lanes = bvh
+            .nodes
+            .par_iter()
+            .map(|node| (0..4).fold(0, |m, k| m | u8::from(node.count[k] != 0) << k))
+            .collect();
     }
     (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
 }
@@ -315,6 +324,37 @@ impl ArrayVec4 {
     }
 }
 
+/// Stack entries the closest-hit traversal needs for a tree of depth `depth`: each level adds
+/// at most three (four children pushed, one popped), and the four keys of a node are always
+/// stored, entered or not.
+const fn closest_stack_len(depth: usize) -> usize {
+    3 * depth + 5
+}
+
+/// The closest-hit stack entry of `node` entered at distance `t` (>= 0): the distance's bits
+/// (ordered like the distances; the sign of -0.0 dropped) above the complemented node index.
+#[inline(always)]
+fn node_key(t: f32, node: u32) -> u64 {
+    u64::from(t.to_bits() & 0x7fff_ffff) << 32 | u64::from(!node)
+}
+
+/// Number of set bits of each 4-bit mask.
+const LANE_COUNT: [u8; 16] = [0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4];
+
+/// Sorts four keys, largest first, with a branch-free network of five compare-exchanges.
+#[inline(always)]
+fn sort4_descending(keys: &mut [u64; 4]) {
+    let mut exchange = |i: usize, j: usize| {
+        let (a, b) = (keys[i], keys[j]);
+        (keys[i], keys[j]) = (a.max(b), a.min(b));
+    };
+    exchange(0, 1);
+    exchange(2, 3);
+    exchange(0, 2);
+    exchange(1, 3);
+    exchange(1, 2);
+}
+
 /// A ray prepared for box tests.
 struct BoxRay {
     origin: [Vec4; 3],
@@ -368,19 +408,31 @@ impl Bvh4 {
         t_max: f32,
         intersect: impl FnMut(u32, f32) -> f32,
     ) -> Option<(u32, f32)> {
-        if self.nodes.is_empty() {
-            None
-        } else if self.depth <= SHALLOW_DEPTH {
-            self.closest_hit_with_stack::<{ 3 * SHALLOW_DEPTH + 1 }>(
+        // The stack is zeroed for every ray, so it is sized by the tree's depth.
+        match self.depth {
+            0 => None,
+            1..=10 => self.closest_hit_with_stack::<{ closest_stack_len(10) }>(
                 origin, direction, t_max, intersect,
-            )
-        } else {
-            self.closest_hit_with_stack::<{ 3 * MAX_DEPTH + 1 }>(
+            ),
+            11..=16 => self.closest_hit_with_stack::<{ closest_stack_len(16) }>(
                 origin, direction, t_max, intersect,
-            )
+            ),
+            17..=24 => self.closest_hit_with_stack::<{ closest_stack_len(24) }>(
+                origin, direction, t_max, intersect,
+            ),
+            _ => self.closest_hit_with_stack::<{ closest_stack_len(MAX_DEPTH) }>(
+                origin, direction, t_max, intersect,
+            ),
         }
     }
 
+    /// Near-to-far traversal with few branches, because incoherent (bounce) rays mispredict
+    /// most data-dependent ones: every entered inner child becomes one `u64` key (its entry
+    /// distance above its node index), a sorting network orders the four keys (lanes not
+    /// entered are 0 and sort last), all four are stored above the stack top, and the top
+    /// moves up by the number entered, so the nearest child is popped next. The node index
+    /// is stored complemented so that children at equal distance are visited in the same
+    /// order as by a stable sort (the later lane first).
     #[inline(always)]
     fn closest_hit_with_stack<const STACK: usize>(
         &self,
@@ -390,48 +442,51 @@ impl Bvh4 {
         mut intersect: impl FnMut(u32, f32) -> f32,
     ) -> Option<(u32, f32)> {
         let ray = BoxRay::new(origin, direction);
-        let mut stack = [(0u32, 0.0f32); STACK];
+        let mut stack = [0u64; STACK];
+        stack[0] = node_key(0.0, 0);
         let mut top = 1;
-        let mut best = None;
+        let mut best_slot = u32::MAX;
         while top > 0 {
             top -= 1;
-            let (index, entry) = stack[top];
-            if entry > t_max {
+            let key = stack[top];
+            if f32::from_bits((key >> 32) as u32) > t_max {
                 continue; // a closer hit was found after this node was pushed
             }
-            let node = &self.nodes[index as usize];
-            let (t_near, mut mask) = ray.test(node, t_max);
-            let mut inner = [(0u32, 0.0f32); 4];
-            let mut inner_count = 0;
-            while mask != 0 {
-                let k = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let count = node.count[k];
-                if count == 0 {
-                    inner[inner_count] = (node.child[k], t_near[k]);
-                    inner_count += 1;
-                    continue;
-                }
-                for slot in node.child[k]..node.child[k] + count {
+            let index = !(key as u32) as usize;
+            let node = &self.nodes[index];
+            let (t_near, entered) = ray.test(node, t_max);
+            let t_near = t_near.to_array();
+            let leaf_lanes = u32::from(self.leaf_lanes[index]);
+            let mut leaves = entered & leaf_lanes;
+            while leaves != 0 {
+                let k = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                for slot in node.child[k]..node.child[k] + node.count[k] {
+                    // Selects rather than a branch: whether a candidate is closer is a coin flip.
                     let t = intersect(slot, t_max);
-                    if t < t_max {
-                        t_max = t;
-                        best = Some((slot, t));
-                    }
+                    let closer = t < t_max;
+                    best_slot = if closer { slot } else { best_slot };
+                    t_max = if closer { t } else { t_max };
                 }
             }
-            // Push far to near (insertion sort of at most four), so the nearest is traversed next.
-            for i in 1..inner_count {
-                let mut j = i;
-                while j > 0 && inner[j - 1].1 < inner[j].1 {
-                    inner.swap(j - 1, j);
-                    j -= 1;
-                }
+            let inner = entered & !leaf_lanes;
+            if inner & inner.wrapping_sub(1) == 0 {
+                // At most one inner child entered (most nodes): no sort; its key is stored
+                // either way and kept if it was entered.
+                let k = (inner.trailing_zeros() & 3) as usize;
+                stack[top] = node_key(t_near[k], node.child[k]);
+                top += inner as usize >> k;
+                continue;
             }
-            stack[top..top + inner_count].copy_from_slice(&inner[..inner_count]);
-            top += inner_count;
+            let mut keys: [u64; 4] = std::array::from_fn(|k| {
+                let key = node_key(t_near[k], node.child[k]);
+                if inner & (1 << k) != 0 { key } else { 0 }
+            });
+            sort4_descending(&mut keys);
+            stack[top..top + 4].copy_from_slice(&keys);
+            top += LANE_COUNT[inner as usize] as usize; // no popcnt in baseline x86-64
         }
-        best
+        (best_slot != u32::MAX).then_some((best_slot, t_max))
     }
 
     /// Whether any primitive is hit within `[0, t_max]`; stops at the first one found.
@@ -719,19 +774,19 @@ impl FlatScene {
     /// Closest primitive along the ray within `[0, t_max]`: its BVH slot and distance.
     #[inline]
     pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
-        let shapes = &self.shapes;
+        let prims = &self.leaf_prims;
         self.bvh
             .closest_hit(origin, direction, t_max, |slot, t_max| {
-                shapes[slot as usize].intersect_t(origin, direction, t_max)
+                prims[slot as usize].hit_t(origin, direction, t_max)
             })
     }
 
     /// Whether anything blocks the segment from `origin` to `origin + t_max direction`.
     #[inline]
     pub fn occluded(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> bool {
-        let shapes = &self.shapes;
+        let prims = &self.leaf_prims;
         self.bvh.any_hit(origin, direction, t_max, |slot, t_max| {
-            shapes[slot as usize].intersect_t(origin, direction, t_max)
+            prims[slot as usize].hit_t(origin, direction, t_max)
         })
     }
 

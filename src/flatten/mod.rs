@@ -7,6 +7,7 @@
 //! valid data.
 
 pub mod bvh;
+pub mod leaf_prims;
 pub mod lights;
 pub mod materials;
 pub mod spheres;
@@ -48,6 +49,8 @@ pub enum Shape {
 pub struct FlatScene {
     /// Geometry per BVH slot.
     pub shapes: Vec<Shape>,
+    /// `shapes` again, laid out for the closest-hit and single-ray occlusion tests.
+    pub leaf_prims: Vec<leaf_prims::LeafPrim>,
     /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
     /// and for spheres.
     pub vertex_normals: Vec<[Vec3; 3]>,
@@ -344,11 +347,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             (groups[g].material, light)
         })
         .unzip();
+    let shapes: Vec<Shape> = order
+        .par_iter()
+        .map(|&i| columns.shapes[i as usize])
+        .collect();
     Ok(FlatScene {
-        shapes: order
-            .par_iter()
-            .map(|&i| columns.shapes[i as usize])
-            .collect(),
+        leaf_prims: shapes.par_iter().map(leaf_prims::LeafPrim::new).collect(),
+        shapes,
         vertex_normals: Columns::ordered(&columns.normals, &order),
         vertex_uvs: Columns::ordered(&columns.uvs, &order),
         vertex_tangents: if normal_mapped {
