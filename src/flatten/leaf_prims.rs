@@ -114,10 +114,18 @@ mod tests {
                 Shape::Triangle(TriangleGeom::new(p(0), p(3), p(6)))
             };
             let origin = p(9) * 2.0;
+            // Aimed at a point near the shape (inside or just outside a triangle's edges, or
+            // of a sphere's outline), so that about half the rays hit.
+            let target = match shape {
+                Shape::Triangle(t) => {
+                    t.v0 + (1.4 * u(12) - 0.2) * t.e1 + (1.4 * u(13) - 0.2) * t.e2
+                }
+                Shape::Sphere(s) => s.center + 1.2 * s.radius * (p(12) - 0.5),
+            };
             let direction = if i % 7 == 0 {
                 Vec3A::new(0.0, 0.0, 1.0) // axis-parallel
             } else {
-                p(12).normalize_or(Vec3A::X)
+                (target - origin).normalize_or(Vec3A::X)
             };
             let t_max = if i % 2 == 0 {
                 f32::INFINITY
