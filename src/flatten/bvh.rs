@@ -7,6 +7,7 @@
 //! Leaves point at contiguous runs of primitive slots: the scene stores primitives in BVH
 //! order, so there is no index indirection at trace time.
 
+use super::leaf_prims::closest_in_leaf;
 use super::spheres::intersect_sphere;
 use super::triangles::{OriginTerms, intersect_triangle_from};
 use super::{FlatScene, Shape};
@@ -406,22 +407,45 @@ impl Bvh4 {
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
-        intersect: impl FnMut(u32, f32) -> f32,
+        mut intersect: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(u32, f32)> {
+        self.closest_hit_by_leaf(origin, direction, t_max, |first, count, t_max| {
+            let mut best = (u32::MAX, t_max);
+            for slot in first..first + count {
+                let t = intersect(slot, best.1);
+                if t < best.1 {
+                    best = (slot, t);
+                }
+            }
+            best
+        })
+    }
+
+    /// [`Self::closest_hit`] with a test per leaf: `leaf(first, count, t_max)` returns the
+    /// closest of the primitives in slots `first..first + count` hit before `t_max`, as its
+    /// slot and distance, or `(u32::MAX, t_max)`.
+    #[inline(always)]
+    pub fn closest_hit_by_leaf(
+        &self,
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+        leaf: impl FnMut(u32, u32, f32) -> (u32, f32),
     ) -> Option<(u32, f32)> {
         // The stack is zeroed for every ray, so it is sized by the tree's depth.
         match self.depth {
             0 => None,
             1..=10 => self.closest_hit_with_stack::<{ closest_stack_len(10) }>(
-                origin, direction, t_max, intersect,
+                origin, direction, t_max, leaf,
             ),
             11..=16 => self.closest_hit_with_stack::<{ closest_stack_len(16) }>(
-                origin, direction, t_max, intersect,
+                origin, direction, t_max, leaf,
             ),
             17..=24 => self.closest_hit_with_stack::<{ closest_stack_len(24) }>(
-                origin, direction, t_max, intersect,
+                origin, direction, t_max, leaf,
             ),
             _ => self.closest_hit_with_stack::<{ closest_stack_len(MAX_DEPTH) }>(
-                origin, direction, t_max, intersect,
+                origin, direction, t_max, leaf,
             ),
         }
     }
@@ -439,7 +463,7 @@ impl Bvh4 {
         origin: Vec3A,
         direction: Vec3A,
         mut t_max: f32,
-        mut intersect: impl FnMut(u32, f32) -> f32,
+        mut leaf: impl FnMut(u32, u32, f32) -> (u32, f32),
     ) -> Option<(u32, f32)> {
         let ray = BoxRay::new(origin, direction);
         let mut stack = [0u64; STACK];
@@ -461,13 +485,10 @@ impl Bvh4 {
             while leaves != 0 {
                 let k = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
-                for slot in node.child[k]..node.child[k] + node.count[k] {
-                    // Selects rather than a branch: whether a candidate is closer is a coin flip.
-                    let t = intersect(slot, t_max);
-                    let closer = t < t_max;
-                    best_slot = if closer { slot } else { best_slot };
-                    t_max = if closer { t } else { t_max };
-                }
+                let (slot, t) = leaf(node.child[k], node.count[k], t_max);
+                // Selects rather than a branch: whether a leaf holds a closer hit is a coin flip.
+                best_slot = if slot != u32::MAX { slot } else { best_slot };
+                t_max = t;
             }
             let inner = entered & !leaf_lanes;
             if inner & inner.wrapping_sub(1) == 0 {
@@ -776,8 +797,8 @@ impl FlatScene {
     pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
         self.bvh
-            .closest_hit(origin, direction, t_max, |slot, t_max| {
-                prims[slot as usize].hit_t(origin, direction, t_max)
+            .closest_hit_by_leaf(origin, direction, t_max, |first, count, t_max| {
+                closest_in_leaf(prims, first, count, origin, direction, t_max)
             })
     }
 
@@ -838,6 +859,7 @@ impl FlatScene {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::flatten::leaf_prims::LeafPrim;
     use crate::flatten::spheres::SphereGeom;
     use crate::flatten::triangles::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
@@ -893,6 +915,41 @@ mod tests {
         }
         assert!(
             hits > 400,
+            "the test rays hit something often enough: {hits}"
+        );
+    }
+
+    #[test]
+    fn leaf_records_agree_with_brute_force_in_a_scene_with_leaves_of_four() {
+        // Above `SMALL_SCENE`, leaves hold up to four primitives and are tested four wide.
+        let (shapes, bvh) = random_scene(6000);
+        let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+        let multi = (0..bvh.nodes.len())
+            .filter(|&n| bvh.nodes[n].count.iter().any(|&c| c >= 2))
+            .count();
+        assert!(multi > 100, "leaves of several primitives: {multi}");
+        let mut hits = 0;
+        for i in 0..3000 {
+            let u = |d: u32| uniform(path_key(7, i, 0), 0, d);
+            let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - Vec3A::ONE;
+            let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
+            let t_max = if i % 2 == 0 {
+                f32::INFINITY
+            } else {
+                3.0 * u(6)
+            };
+            let brute = (0..shapes.len() as u32)
+                .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
+                .filter(|h| h.1 < f32::INFINITY)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let found = bvh.closest_hit_by_leaf(origin, direction, t_max, |first, count, t| {
+                closest_in_leaf(&prims, first, count, origin, direction, t)
+            });
+            assert_eq!(found.map(|h| h.1), brute.map(|h| h.1), "ray {i}");
+            hits += brute.is_some() as u32;
+        }
+        assert!(
+            hits > 300,
             "the test rays hit something often enough: {hits}"
         );
     }
