@@ -796,10 +796,14 @@ impl FlatScene {
     #[inline]
     pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
-        self.bvh
-            .closest_hit_by_leaf(origin, direction, t_max, |first, count, t_max| {
-                closest_in_leaf(prims, first, count, origin, direction, t_max)
-            })
+        self.bvh.closest_hit_by_leaf(
+            origin,
+            direction,
+            t_max,
+            // Inlined by force: the renderer's build otherwise called it per leaf.
+            #[inline(always)]
+            |first, count, t_max| closest_in_leaf(prims, first, count, origin, direction, t_max),
+        )
     }
 
     /// Whether anything blocks the segment from `origin` to `origin + t_max direction`.
