@@ -367,19 +367,21 @@ struct BoxRay {
 impl BoxRay {
     #[inline(always)]
     fn new(origin: Vec3A, direction: Vec3A) -> Self {
-        let inv = safe_inverse;
+        // Branch-free: a mispredicted sign test per axis cost more than these few lane ops.
+        let inv = safe_inverse3(direction);
+        let negative = direction.cmplt(Vec3A::ZERO).bitmask() as usize;
         BoxRay {
             origin: [
                 Vec4::splat(origin.x),
                 Vec4::splat(origin.y),
                 Vec4::splat(origin.z),
             ],
-            inv_direction: [
-                Vec4::splat(inv(direction.x)),
-                Vec4::splat(inv(direction.y)),
-                Vec4::splat(inv(direction.z)),
+            inv_direction: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            near: [
+                3 * (negative & 1),
+                1 + 3 * (negative >> 1 & 1),
+                2 + 3 * (negative >> 2 & 1),
             ],
-            near: [0, 1, 2].map(|a| if direction[a] >= 0.0 { a } else { a + 3 }),
         }
     }
 
@@ -737,20 +739,10 @@ impl Bvh4 {
     }
 }
 
-/// `1 / x`, with a large finite stand-in for `1 / 0` that keeps `0 * inf` NaNs out of box
-/// tests. Its sign follows `x >= 0`, as the traversals' choice of near planes does: `-0.0`
-/// counts as positive (taking its sign bit sent such rays' slabs the wrong way round).
-#[inline(always)]
-fn safe_inverse(x: f32) -> f32 {
-    if x.abs() < f32::EPSILON {
-        let sign = if x >= 0.0 { 1.0 } else { -1.0 };
-        sign / f32::EPSILON
-    } else {
-        1.0 / x
-    }
-}
-
-/// [`safe_inverse`] of each component.
+/// `1 / v` per component, with a large finite stand-in (`±1 / EPSILON`) for `1 / 0` that keeps
+/// `0 * inf` NaNs out of box tests. Its sign follows `x >= 0`, as the traversals' choice of
+/// near planes does: `-0.0` counts as positive (taking its sign bit sent such rays' slabs the
+/// wrong way round).
 #[inline(always)]
 fn safe_inverse3(v: Vec3A) -> Vec3A {
     let tiny = v.abs().cmplt(Vec3A::splat(f32::EPSILON));
@@ -1065,6 +1057,42 @@ mod tests {
                 .fold(0, |m, k| m | 1 << k)
         });
         assert_eq!(occluded, 0b11);
+    }
+
+    /// The scalar form of [`safe_inverse3`], written out as the reference.
+    fn safe_inverse(x: f32) -> f32 {
+        if x.abs() < f32::EPSILON {
+            let sign = if x >= 0.0 { 1.0 } else { -1.0 };
+            sign / f32::EPSILON
+        } else {
+            1.0 / x
+        }
+    }
+
+    #[test]
+    fn box_ray_setup_matches_the_scalar_inverse_and_near_planes() {
+        let values = [
+            0.0,
+            -0.0,
+            1e-9,
+            -1e-9,
+            f32::EPSILON,
+            -f32::EPSILON,
+            0.3,
+            -0.7,
+            1.0,
+        ];
+        for &x in &values {
+            for &y in &values {
+                let direction = Vec3A::new(x, y, -y);
+                let ray = BoxRay::new(Vec3A::ZERO, direction);
+                for a in 0..3 {
+                    let d = direction[a];
+                    assert_eq!(ray.inv_direction[a].x.to_bits(), safe_inverse(d).to_bits());
+                    assert_eq!(ray.near[a], if d >= 0.0 { a } else { a + 3 }, "{d}");
+                }
+            }
+        }
     }
 
     #[test]
