@@ -347,12 +347,16 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             (groups[g].material, light)
         })
         .unzip();
-    let shapes: Vec<Shape> = order
+    // The shapes and their leaf records in one pass: each shape is read once.
+    let (shapes, leaf_prims): (Vec<Shape>, Vec<leaf_prims::LeafPrim>) = order
         .par_iter()
-        .map(|&i| columns.shapes[i as usize])
-        .collect();
+        .map(|&i| {
+            let shape = columns.shapes[i as usize];
+            (shape, leaf_prims::LeafPrim::new(&shape))
+        })
+        .unzip();
     Ok(FlatScene {
-        leaf_prims: shapes.par_iter().map(leaf_prims::LeafPrim::new).collect(),
+        leaf_prims,
         shapes,
         vertex_normals: Columns::ordered(&columns.normals, &order),
         vertex_uvs: Columns::ordered(&columns.uvs, &order),
