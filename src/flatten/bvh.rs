@@ -671,7 +671,7 @@ impl Bvh4 {
         }
         let all = if n == 32 { u32::MAX } else { (1u32 << n) - 1 };
         // Which axes keep one sign, and the interval of inverse directions on them: on
-        // either side of zero `safe_inverse` never increases, so the interval's ends are the
+        // either side of zero `safe_inverse3` never increases, so the interval's ends are the
         // inverses of the extreme components (exactly what inverting every ray would give).
         let (d_min, d_max) = (packet.directions_min, packet.directions_max);
         let positive = d_min.cmpge(Vec3A::ZERO).bitmask();
