@@ -49,24 +49,47 @@ impl Film {
 
     /// The mean radiance per pixel, row-major from the top-left.
     pub fn resolve(&self) -> Image {
-        let pixels = self
-            .sum
-            .iter()
-            .zip(&self.samples)
-            .map(|(s, &n)| {
-                let inv = if n > 0 { 1.0 / n as f64 } else { 0.0 };
-                Rgb::new(
-                    (s[0] * inv) as f32,
-                    (s[1] * inv) as f32,
-                    (s[2] * inv) as f32,
-                )
-            })
-            .collect();
         Image {
             width: self.width,
             height: self.height,
-            pixels,
+            pixels: (0..self.samples.len()).map(|i| self.pixel(i)).collect(),
         }
+    }
+}
+
+/// Pixels that can be written to an image file: a resolved [`Image`], or a [`Film`] resolved
+/// pixel by pixel as the file is written (no second image-sized buffer beside the film).
+pub trait Pixels: Sync {
+    /// Width and height.
+    fn size(&self) -> (u32, u32);
+    /// The pixel of row-major index `index`, row 0 at the top.
+    fn pixel(&self, index: usize) -> Rgb;
+}
+
+impl Pixels for Film {
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The mean of the pixel's samples; black without samples.
+    fn pixel(&self, index: usize) -> Rgb {
+        let (s, n) = (self.sum[index], self.samples[index]);
+        let inv = if n > 0 { 1.0 / n as f64 } else { 0.0 };
+        Rgb::new(
+            (s[0] * inv) as f32,
+            (s[1] * inv) as f32,
+            (s[2] * inv) as f32,
+        )
+    }
+}
+
+impl Pixels for Image {
+    fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    fn pixel(&self, index: usize) -> Rgb {
+        self.pixels[index]
     }
 }
 

@@ -14,7 +14,7 @@
 //! let flat = flatten(&scene.world, path)?;
 //! let settings = RenderSettings { width: 200, height: 200, spp: 4, ..Default::default() };
 //! let (film, stats) = render(&flat, &settings, |_| Flow::Continue)?;
-//! write_image(std::path::Path::new("room.png"), &film.resolve(), 0.0)?;
+//! write_image(std::path::Path::new("room.png"), &film, 0.0)?;
 //! println!("{}", stats.summary());
 //! # Ok::<(), wavetrace::Error>(())
 //! ```
@@ -34,7 +34,7 @@ pub mod texture;
 pub mod wavefront;
 
 pub use error::{Error, Result};
-pub use film::{Film, Image};
+pub use film::{Film, Image, Pixels};
 pub use flatten::{FlatScene, flatten};
 pub use output::write_image;
 pub use scene::{Scene, load_scene};

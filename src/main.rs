@@ -277,7 +277,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         })?;
         bar.finish_and_clear();
 
-        write_image(&output, &film.resolve(), args.exposure)?;
+        write_image(&output, &film, args.exposure)?;
         eprintln!(
             "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
             settings.width,

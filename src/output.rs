@@ -3,7 +3,7 @@
 //! so an existing image is never left half-overwritten.
 
 use crate::error::{Error, Result};
-use crate::film::Image;
+use crate::film::{Image, Pixels};
 use image::ImageEncoder;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
@@ -48,8 +48,9 @@ pub fn linear_to_srgb(x: f32) -> f32 {
     }
 }
 
-/// Writes `image` to `path`; `exposure` (in stops) applies to PNG only.
-pub fn write_image(path: &Path, image: &Image, exposure: f32) -> Result<()> {
+/// Writes `image` (an [`Image`], or a film resolved as it is written) to `path`; `exposure`
+/// (in stops) applies to PNG only.
+pub fn write_image(path: &Path, image: &impl Pixels, exposure: f32) -> Result<()> {
     let format = ImageFormat::from_path(path)?;
     write_atomically(path, |file| match format {
         ImageFormat::Png => encode_png(file, path, image, exposure),
@@ -135,12 +136,11 @@ pub fn temporary_path(path: &Path) -> PathBuf {
 }
 
 /// Encodes an 8-bit sRGB PNG into `out`; `path` names the file in errors.
-fn encode_png(out: &mut impl Write, path: &Path, image: &Image, exposure: f32) -> Result<()> {
+fn encode_png(out: &mut impl Write, path: &Path, image: &impl Pixels, exposure: f32) -> Result<()> {
     let scale = exposure.exp2();
-    let bytes: Vec<u8> = image
-        .pixels
-        .iter()
-        .flat_map(|p| (*p * scale).to_array())
+    let (width, height) = image.size();
+    let bytes: Vec<u8> = (0..width as usize * height as usize)
+        .flat_map(|i| (image.pixel(i) * scale).to_array())
         .map(|c| {
             (linear_to_srgb(if c.is_finite() {
                 c.clamp(0.0, 1.0)
@@ -151,12 +151,7 @@ fn encode_png(out: &mut impl Write, path: &Path, image: &Image, exposure: f32) -
         })
         .collect();
     image::codecs::png::PngEncoder::new(out)
-        .write_image(
-            &bytes,
-            image.width,
-            image.height,
-            image::ExtendedColorType::Rgb8,
-        )
+        .write_image(&bytes, width, height, image::ExtendedColorType::Rgb8)
         .map_err(|e| match e {
             image::ImageError::IoError(source) => Error::Io {
                 path: path.to_path_buf(),
@@ -171,14 +166,15 @@ fn encode_png(out: &mut impl Write, path: &Path, image: &Image, exposure: f32) -
 }
 
 /// Encodes a linear float RGB OpenEXR into `out`; `path` names the file in errors.
-fn encode_exr(out: &mut (impl Write + Seek), path: &Path, image: &Image) -> Result<()> {
+fn encode_exr(out: &mut (impl Write + Seek), path: &Path, image: &impl Pixels) -> Result<()> {
     use exr::prelude::{Image as ExrImage, SpecificChannels, WritableImage};
-    let w = image.width as usize;
+    let (width, height) = image.size();
+    let w = width as usize;
     let channels = SpecificChannels::rgb(|pos: exr::math::Vec2<usize>| {
-        let p = image.pixels[pos.y() * w + pos.x()];
+        let p = image.pixel(pos.y() * w + pos.x());
         (p.x, p.y, p.z)
     });
-    ExrImage::from_channels((w, image.height as usize), channels)
+    ExrImage::from_channels((w, height as usize), channels)
         .write()
         .to_buffered(out)
         .map_err(|e| match e {
@@ -307,6 +303,31 @@ mod tests {
         assert_eq!(read_exr(&exr).unwrap(), image);
         write_image(&dir.path().join("new.png"), &image, 0.0).unwrap();
         assert_eq!(directory_listing(dir.path()), ["new.exr", "new.png"]);
+    }
+
+    #[test]
+    fn a_film_writes_the_same_files_as_its_resolved_image() {
+        let mut film = crate::film::Film::new(7, 5);
+        for (i, p) in noise_image().pixels.iter().take(35).enumerate() {
+            film.add_sample(i as u32 % 33, *p); // two pixels without samples, two with two
+        }
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["a.exr", "a.png"] {
+            let (from_film, resolved) = (
+                dir.path().join(name),
+                dir.path().join("r".to_owned() + name),
+            );
+            write_image(&from_film, &film, 1.5).unwrap();
+            write_image(&resolved, &film.resolve(), 1.5).unwrap();
+            if name.ends_with(".exr") {
+                assert_eq!(read_exr(&from_film).unwrap(), film.resolve());
+            } else {
+                assert_eq!(
+                    std::fs::read(&from_film).unwrap(),
+                    std::fs::read(&resolved).unwrap()
+                );
+            }
+        }
     }
 
     #[test]
