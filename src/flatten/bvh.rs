@@ -881,24 +881,41 @@ mod tests {
         (order.iter().map(|&i| shapes[i as usize]).collect(), bvh)
     }
 
+    /// Ray `i` of a random set `set` through the scenes of [`random_scene`]: half of them
+    /// unbounded, half with a random length.
+    fn random_ray(set: u64, i: u32) -> (Vec3A, Vec3A, f32) {
+        let u = |d: u32| uniform(path_key(set, i, 0), 0, d);
+        let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - Vec3A::ONE;
+        let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
+        let t_max = if i % 2 == 0 {
+            f32::INFINITY
+        } else {
+            3.0 * u(6)
+        };
+        (origin, direction, t_max)
+    }
+
+    /// The closest hit found by testing every shape.
+    fn brute_force_closest(
+        shapes: &[Shape],
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+    ) -> Option<(u32, f32)> {
+        (0..shapes.len() as u32)
+            .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
+            .filter(|h| h.1 < f32::INFINITY)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     #[test]
     fn closest_hit_and_any_hit_agree_with_brute_force() {
         let (shapes, bvh) = random_scene(3000);
         assert!(bvh.depth > 2 && bvh.depth <= MAX_DEPTH);
         let mut hits = 0;
         for i in 0..4000 {
-            let u = |d: u32| uniform(path_key(2, i, 0), 0, d);
-            let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - Vec3A::ONE;
-            let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
-            let t_max = if i % 2 == 0 {
-                f32::INFINITY
-            } else {
-                3.0 * u(6)
-            };
-            let brute = (0..shapes.len() as u32)
-                .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
-                .filter(|h| h.1 < f32::INFINITY)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let (origin, direction, t_max) = random_ray(2, i);
+            let brute = brute_force_closest(&shapes, origin, direction, t_max);
             let found = bvh.closest_hit(origin, direction, t_max, |s, t| {
                 shapes[s as usize].intersect_t(origin, direction, t)
             });
@@ -926,18 +943,8 @@ mod tests {
         assert!(multi > 100, "leaves of several primitives: {multi}");
         let mut hits = 0;
         for i in 0..3000 {
-            let u = |d: u32| uniform(path_key(7, i, 0), 0, d);
-            let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - Vec3A::ONE;
-            let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
-            let t_max = if i % 2 == 0 {
-                f32::INFINITY
-            } else {
-                3.0 * u(6)
-            };
-            let brute = (0..shapes.len() as u32)
-                .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
-                .filter(|h| h.1 < f32::INFINITY)
-                .min_by(|a, b| a.1.total_cmp(&b.1));
+            let (origin, direction, t_max) = random_ray(7, i);
+            let brute = brute_force_closest(&shapes, origin, direction, t_max);
             let found = bvh.closest_hit_by_leaf(origin, direction, t_max, |first, count, t| {
                 closest_in_leaf(&prims, first, count, origin, direction, t)
             });
