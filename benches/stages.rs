@@ -117,12 +117,13 @@ fn prepare(scene: &FlatScene) -> Prepared {
         &mut rays,
     );
     intersect_closest(scene, &rays, &mut hits);
+    let defaults = wavetrace::RenderSettings::default();
     let params = ShadeParams {
         bounce: 0,
         shadow_rays: SHADOW_RAYS,
         mis: true, // the renderer's default
-        roulette_min_bounces: 3,
-        max_depth: 1024,
+        roulette_min_bounces: defaults.roulette_min_bounces,
+        max_depth: defaults.max_depth,
     };
     let camera_paths = paths.clone();
     shade_hits(

@@ -33,7 +33,8 @@ pub struct RenderSettings {
     /// hit would make the shadow buffers large). Only speed and memory depend on it, never
     /// the image.
     pub batch_size: u32,
-    /// Bounces before Russian roulette may end a path.
+    /// Bounces before Russian roulette may end a path: 1 lets it play from the second hit
+    /// on, as pbrt-v4 and Cycles do (the seed played it from the first).
     pub roulette_min_bounces: u32,
     /// Safety cap on path depth; paths cut there are counted in the statistics. It is high
     /// enough that Russian roulette practically always ends paths first.
@@ -50,7 +51,7 @@ impl Default for RenderSettings {
             mis: true,
             seed: DEFAULT_SEED,
             batch_size: 1 << 16,
-            roulette_min_bounces: 3,
+            roulette_min_bounces: 1,
             max_depth: 1024,
         }
     }
