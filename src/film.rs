@@ -1,6 +1,8 @@
 //! The film: per-pixel sums of sample radiance, and the resolved image.
 
 use crate::math::Rgb;
+use rayon::prelude::*;
+use std::ops::Range;
 
 /// Accumulated samples. Sums are f64 so that long renders do not lose precision, and each
 /// pixel's samples are added in sample order, so the sums are bit-reproducible.
@@ -29,17 +31,30 @@ impl Film {
     }
 
     /// Adds one sample to a pixel; a NaN or infinite sample is counted and discarded.
-    #[inline]
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
-        if !radiance.is_finite() {
-            self.rejected_samples += 1;
-            return;
-        }
-        let s = &mut self.sum[pixel as usize];
-        s[0] += radiance.x as f64;
-        s[1] += radiance.y as f64;
-        s[2] += radiance.z as f64;
-        self.samples[pixel as usize] += 1;
+        let i = pixel as usize;
+        let added = accumulate(&mut self.sum[i], &mut self.samples[i], radiance);
+        self.rejected_samples += u64::from(!added);
+    }
+
+    /// The pixels `pixels` cut into consecutive regions of `size` pixels (the last may be
+    /// shorter), to be filled in parallel.
+    pub fn regions_mut(
+        &mut self,
+        pixels: Range<u32>,
+        size: usize,
+    ) -> impl IndexedParallelIterator<Item = FilmRegion<'_>> {
+        let range = pixels.start as usize..pixels.end as usize;
+        self.sum[range.clone()]
+            .par_chunks_mut(size)
+            .zip(self.samples[range].par_chunks_mut(size))
+            .enumerate()
+            .map(move |(k, (sum, samples))| FilmRegion {
+                first_pixel: pixels.start + (k * size) as u32,
+                sum,
+                samples,
+                rejected_samples: 0,
+            })
     }
 
     /// Fewest samples any pixel holds.
@@ -55,6 +70,45 @@ impl Film {
             pixels: (0..self.samples.len()).map(|i| self.pixel(i)).collect(),
         }
     }
+}
+
+/// A run of consecutive pixels of a [`Film`], borrowed to add samples to them: the regions
+/// of one film are filled in parallel, each pixel's samples still in sample order.
+pub struct FilmRegion<'a> {
+    first_pixel: u32,
+    sum: &'a mut [[f64; 3]],
+    samples: &'a mut [u32],
+    /// Samples discarded because their radiance was NaN or infinite.
+    pub rejected_samples: u64,
+}
+
+impl FilmRegion<'_> {
+    /// The pixels of the region.
+    pub fn pixels(&self) -> Range<u32> {
+        self.first_pixel..self.first_pixel + self.samples.len() as u32
+    }
+
+    /// Adds one sample to a pixel of the region (a film-wide index); a NaN or infinite sample
+    /// is counted and discarded.
+    #[inline]
+    pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
+        let i = (pixel - self.first_pixel) as usize;
+        let added = accumulate(&mut self.sum[i], &mut self.samples[i], radiance);
+        self.rejected_samples += u64::from(!added);
+    }
+}
+
+/// Adds a finite sample to a pixel's sum and count; returns false (adding nothing) otherwise.
+#[inline]
+fn accumulate(sum: &mut [f64; 3], samples: &mut u32, radiance: Rgb) -> bool {
+    if !radiance.is_finite() {
+        return false;
+    }
+    sum[0] += radiance.x as f64;
+    sum[1] += radiance.y as f64;
+    sum[2] += radiance.z as f64;
+    *samples += 1;
+    true
 }
 
 /// Pixels that can be written to an image file: a resolved [`Image`], or a [`Film`] resolved

@@ -50,7 +50,7 @@ impl Default for RenderSettings {
             shadow_rays: 1,
             mis: true,
             seed: DEFAULT_SEED,
-            batch_size: 1 << 16,
+            batch_size: 4096,
             roulette_min_bounces: 1,
             max_depth: 1024,
         }

@@ -2,7 +2,7 @@
 //! render and reused for every bounce and batch; index `i` of every buffer of a bounce refers
 //! to the same live path.
 
-use crate::film::Film;
+use crate::film::FilmRegion;
 use crate::math::{Rgb, Vec2, Vec3A};
 
 /// Rays to intersect, one per live path.
@@ -131,7 +131,7 @@ impl ShadowBatch {
 /// (with their next rays, which become the current rays), and finished paths deliver their
 /// radiance to the film. Sequential on purpose: the film receives samples in the same order
 /// on every run.
-pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut Film) {
+pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut FilmRegion) {
     let mut kept = 0;
     for i in 0..paths.len() {
         if !paths.alive[i] {

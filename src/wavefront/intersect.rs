@@ -3,7 +3,6 @@
 use super::batch::{HitBatch, NO_HIT, RayBatch};
 use crate::flatten::{FlatScene, Shape};
 use crate::math::Vec2;
-use rayon::prelude::*;
 
 /// Finds the closest hit of each ray; misses get [`NO_HIT`].
 pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch) {
@@ -11,29 +10,22 @@ pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch
     hits.t.resize(n, 0.0);
     hits.slot.resize(n, NO_HIT);
     hits.barycentric.resize(n, Vec2::ZERO);
-    (
-        &mut hits.t,
-        &mut hits.slot,
-        &mut hits.barycentric,
-        &rays.origin,
-        &rays.direction,
-    )
-        .into_par_iter()
-        .with_min_len(256)
-        .for_each(|(t, slot, barycentric, &origin, &direction)| {
-            (*slot, *t) = scene
-                .closest_hit(origin, direction, f32::INFINITY)
-                .unwrap_or((NO_HIT, f32::INFINITY));
-            if let Some(Shape::Triangle(tri)) = scene.shapes.get(*slot as usize) {
-                // Barycentrics only for the winner; the traversal computed them for every candidate.
-                *barycentric = crate::flatten::triangles::intersect_triangle(
-                    tri,
-                    origin,
-                    direction,
-                    0.0,
-                    f32::INFINITY,
-                )
-                .map_or(Vec2::ZERO, |h| h.1);
-            }
-        });
+    for i in 0..n {
+        let (origin, direction) = (rays.origin[i], rays.direction[i]);
+        let (slot, t) = scene
+            .closest_hit(origin, direction, f32::INFINITY)
+            .unwrap_or((NO_HIT, f32::INFINITY));
+        (hits.slot[i], hits.t[i]) = (slot, t);
+        if let Some(Shape::Triangle(tri)) = scene.shapes.get(slot as usize) {
+            // Barycentrics only for the winner; the traversal computed them for every candidate.
+            hits.barycentric[i] = crate::flatten::triangles::intersect_triangle(
+                tri,
+                origin,
+                direction,
+                0.0,
+                f32::INFINITY,
+            )
+            .map_or(Vec2::ZERO, |h| h.1);
+        }
+    }
 }

@@ -2,7 +2,10 @@
 //!
 //! Each pass takes one sample per pixel; pixels are cut into batches; each batch runs
 //! generate -> (intersect -> shade -> shadow -> compact)* until no path is left. Every stage
-//! is a plain function over the structure-of-arrays buffers of [`batch`], parallel inside.
+//! is a plain sequential function over the structure-of-arrays buffers of [`batch`]; the
+//! batches are traced in parallel, one per thread at a time. A thread's batch stays in its
+//! own cache from stage to stage (the shadow rays shading writes are traced right after),
+//! and the threads meet only between rounds of batches, not after every stage and bounce.
 
 pub mod batch;
 pub mod generate;
@@ -14,10 +17,11 @@ mod surface;
 
 use crate::camera::PinholeCamera;
 use crate::error::Result;
-use crate::film::Film;
+use crate::film::{Film, FilmRegion};
 use crate::flatten::FlatScene;
 use crate::settings::RenderSettings;
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
+use rayon::prelude::*;
 use shade::ShadeParams;
 use stats::RenderStats;
 use std::time::{Duration, Instant};
@@ -40,7 +44,8 @@ pub enum Flow {
     Stop,
 }
 
-/// The work buffers, allocated once and reused by every batch and bounce.
+/// The work buffers of one batch, reused by every bounce (and by the batches that follow on
+/// the same thread within a round).
 #[derive(Default)]
 struct Buffers {
     paths: PathState,
@@ -50,7 +55,8 @@ struct Buffers {
     shadows: ShadowBatch,
 }
 
-/// Renders `scene`, calling `progress` after each batch. Runs on the current rayon pool.
+/// Renders `scene`, calling `progress` after each round of batches. Runs on the current
+/// rayon pool.
 pub fn render(
     scene: &FlatScene,
     settings: &RenderSettings,
@@ -61,73 +67,36 @@ pub fn render(
     let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
     let pixel_count = settings.width * settings.height;
     let batch_size = paths_per_batch(settings);
+    let round_size = ROUND_PATHS.max(batch_size);
     let mut film = Film::new(settings.width, settings.height);
     let mut stats = RenderStats::default();
-    let mut b = Buffers {
-        shadows: ShadowBatch {
-            per_path: settings.shadow_rays.max(1) as usize,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
     let samples_total = pixel_count as u64 * settings.spp as u64;
 
     'passes: for sample_index in 0..settings.spp {
-        for first in (0..pixel_count).step_by(batch_size as usize) {
-            let pixels = first..(first + batch_size).min(pixel_count);
-            // 1. generate: one camera ray per pixel of the batch
-            timed(&mut stats.stage_time[0], || {
-                generate::generate_camera_rays(
-                    &camera,
-                    settings.seed,
-                    pixels.clone(),
-                    sample_index,
-                    &mut b.paths,
-                    &mut b.rays,
+        for first in (0..pixel_count).step_by(round_size as usize) {
+            let pixels = first..(first + round_size).min(pixel_count);
+            let round = film
+                .regions_mut(pixels, batch_size as usize)
+                .map_init(
+                    || Buffers {
+                        shadows: ShadowBatch {
+                            per_path: settings.shadow_rays.max(1) as usize,
+                            ..Default::default()
+                        },
+                        ..Default::default()
+                    },
+                    |buffers, mut region| {
+                        let batch = Batch {
+                            scene,
+                            camera: &camera,
+                            settings,
+                            sample_index,
+                        };
+                        batch.trace(&mut region, buffers)
+                    },
                 )
-            });
-            stats.camera_rays += b.rays.len() as u64;
-            for bounce in 0.. {
-                if b.paths.is_empty() {
-                    break;
-                }
-                if bounce > 0 {
-                    stats.bounce_rays += b.rays.len() as u64;
-                }
-                // 2. intersect: closest hit of every ray
-                timed(&mut stats.stage_time[1], || {
-                    intersect::intersect_closest(scene, &b.rays, &mut b.hits)
-                });
-                // 3. shade: emission, shadow rays, next rays, Russian roulette
-                let params = ShadeParams {
-                    bounce,
-                    shadow_rays: settings.shadow_rays,
-                    mis: settings.mis,
-                    roulette_min_bounces: settings.roulette_min_bounces,
-                    max_depth: settings.max_depth,
-                };
-                stats.capped_paths += timed(&mut stats.stage_time[2], || {
-                    shade::shade_hits(
-                        scene,
-                        params,
-                        &b.rays,
-                        &b.hits,
-                        &mut b.paths,
-                        &mut b.next_rays,
-                        &mut b.shadows,
-                    )
-                });
-                // 4. shadow: occlusion, then unoccluded light is added to its path
-                stats.shadow_rays += timed(&mut stats.stage_time[3], || {
-                    shadow::trace_shadow_rays(scene, &b.shadows, &mut b.paths)
-                });
-                // finished paths go to the film; survivors continue with their next rays
-                timed(&mut stats.stage_time[4], || {
-                    compact_paths(&mut b.paths, &mut b.next_rays, &mut film)
-                });
-                std::mem::swap(&mut b.rays, &mut b.next_rays);
-            }
-            stats.samples += pixels.len() as u64;
+                .reduce(RenderStats::default, RenderStats::merged);
+            stats = stats.merged(round);
             if progress(Progress {
                 samples_done: stats.samples,
                 samples_total,
@@ -138,15 +107,91 @@ pub fn render(
             }
         }
     }
-    stats.rejected_samples = film.rejected_samples;
+    film.rejected_samples = stats.rejected_samples;
     stats.complete_spp = (stats.samples / pixel_count as u64) as u32;
     stats.wall_time = start.elapsed();
     Ok((film, stats))
 }
 
-/// Most shadow-ray slots a batch holds (32 bytes each, 32 MiB in all): the default 65,536
-/// paths with up to 16 shadow rays per hit, fewer paths with more.
-const MAX_SHADOW_SLOTS: u32 = 1 << 20;
+/// Paths traced between two progress reports (a round of batches traced in parallel): short
+/// enough that Ctrl-C is answered within a fraction of a second.
+const ROUND_PATHS: u32 = 1 << 18;
+
+/// One batch of paths: one sample of each pixel of a film region.
+struct Batch<'a> {
+    scene: &'a FlatScene,
+    camera: &'a PinholeCamera,
+    settings: &'a RenderSettings,
+    sample_index: u32,
+}
+
+impl Batch<'_> {
+    /// Runs generate -> (intersect -> shade -> shadow -> compact)* until no path is left;
+    /// finished paths go to `film`. Returns the batch's counts and stage times.
+    fn trace(&self, film: &mut FilmRegion, b: &mut Buffers) -> RenderStats {
+        let settings = self.settings;
+        let mut stats = RenderStats::default();
+        // 1. generate: one camera ray per pixel of the batch
+        timed(&mut stats.stage_time[0], || {
+            generate::generate_camera_rays(
+                self.camera,
+                settings.seed,
+                film.pixels(),
+                self.sample_index,
+                &mut b.paths,
+                &mut b.rays,
+            )
+        });
+        stats.camera_rays = b.rays.len() as u64;
+        stats.samples = b.rays.len() as u64;
+        for bounce in 0.. {
+            if b.paths.is_empty() {
+                break;
+            }
+            if bounce > 0 {
+                stats.bounce_rays += b.rays.len() as u64;
+            }
+            // 2. intersect: closest hit of every ray
+            timed(&mut stats.stage_time[1], || {
+                intersect::intersect_closest(self.scene, &b.rays, &mut b.hits)
+            });
+            // 3. shade: emission, shadow rays, next rays, Russian roulette
+            let params = ShadeParams {
+                bounce,
+                shadow_rays: settings.shadow_rays,
+                mis: settings.mis,
+                roulette_min_bounces: settings.roulette_min_bounces,
+                max_depth: settings.max_depth,
+            };
+            stats.capped_paths += timed(&mut stats.stage_time[2], || {
+                shade::shade_hits(
+                    self.scene,
+                    params,
+                    &b.rays,
+                    &b.hits,
+                    &mut b.paths,
+                    &mut b.next_rays,
+                    &mut b.shadows,
+                )
+            });
+            // 4. shadow: occlusion, then unoccluded light is added to its path
+            stats.shadow_rays += timed(&mut stats.stage_time[3], || {
+                shadow::trace_shadow_rays(self.scene, &b.shadows, &mut b.paths)
+            });
+            // finished paths go to the film; survivors continue with their next rays
+            timed(&mut stats.stage_time[4], || {
+                compact_paths(&mut b.paths, &mut b.next_rays, film)
+            });
+            std::mem::swap(&mut b.rays, &mut b.next_rays);
+        }
+        stats.rejected_samples = film.rejected_samples;
+        stats
+    }
+}
+
+/// Most shadow-ray slots a batch holds (32 bytes each, 4 MiB in all): the default 4,096
+/// paths with up to 32 shadow rays per hit, fewer paths with more.
+const MAX_SHADOW_SLOTS: u32 = 1 << 17;
 
 /// Paths per batch: the settings' batch size, cut to the image and to the shadow-ray budget,
 /// so that memory stays bounded whatever the number of shadow rays (the image never depends
@@ -180,8 +225,8 @@ mod tests {
             ..RenderSettings::default()
         };
         // The seed's 15 shadow rays keep the full default batch; the image can cut it.
-        assert_eq!(paths_per_batch(&settings(15, 800)), 1 << 16);
-        assert_eq!(paths_per_batch(&settings(15, 100)), 10_000);
+        assert_eq!(paths_per_batch(&settings(15, 800)), 4096);
+        assert_eq!(paths_per_batch(&settings(15, 50)), 2500);
         // The most shadow rays: the shadow buffers stay within the budget.
         let most = settings(crate::settings::MAX_SHADOW_RAYS, 800);
         let paths = paths_per_batch(&most);

@@ -9,7 +9,7 @@ use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
 use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
-use rayon::prelude::*;
+use crate::settings::MAX_SHADOW_RAYS;
 
 /// Russian roulette never keeps a path with probability above this, so that paths through
 /// lossless materials (glass, white mirrors) still end.
@@ -47,77 +47,53 @@ pub fn shade_hits(
     next_rays.resize(n);
     shadows.grow_to(n);
     let per = shadows.per_path;
-    let path_columns = (
-        &mut paths.throughput,
-        &mut paths.radiance,
-        &mut paths.count_emission,
-        &mut paths.bsdf_pdf,
-        &mut paths.alive,
-        &paths.rng_key,
-    );
-    let ray_columns = (
-        &rays.origin,
-        &rays.direction,
-        &hits.t,
-        &hits.slot,
-        &hits.barycentric,
-        &mut next_rays.origin,
-        &mut next_rays.direction,
-    );
-    let shadow_columns = (
-        &mut shadows.count[..n],
-        &mut shadows.origin[..n],
-        shadows.direction[..n * per].par_chunks_mut(per),
-        shadows.t_max[..n * per].par_chunks_mut(per),
-        shadows.contribution[..n * per].par_chunks_mut(per),
-    );
     // Shadow ray j of this bounce draws dimension SHADOW_FIRST + j on every path.
-    let shadow_salts: Vec<u64> = (0..params.shadow_rays)
-        .map(|j| rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j))
-        .collect();
-    (path_columns, ray_columns, shadow_columns)
-        .into_par_iter()
-        .with_min_len(256)
-        .map_init(
-            LightSamples::default,
-            |light_samples,
-             (
-                (throughput, radiance, count_emission, bsdf_pdf, alive, &key),
-                (&origin, &direction, &t, &slot, &barycentric, next_origin, next_direction),
-                shadow,
-            )| {
-                let mut path = PathView {
-                    throughput,
-                    radiance,
-                    count_emission,
-                    bsdf_pdf,
-                    alive,
-                    next_origin,
-                    next_direction,
-                };
-                let hit = Hit {
-                    origin,
-                    direction,
-                    t,
-                    slot,
-                    barycentric,
-                };
-                let shadow = ShadowView {
-                    count: shadow.0,
-                    origin: shadow.1,
-                    direction: shadow.2,
-                    t_max: shadow.3,
-                    contribution: shadow.4,
-                };
-                let next_event = NextEvent {
-                    salts: &shadow_salts,
-                    samples: light_samples,
-                    shadow,
-                };
-                shade_one(scene, &params, key, hit, &mut path, next_event) as u64
+    let mut salts = [0; MAX_SHADOW_RAYS as usize];
+    let salts = &mut salts[..params.shadow_rays as usize];
+    for (j, salt) in salts.iter_mut().enumerate() {
+        *salt = rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j as u32);
+    }
+    let mut light_samples = LightSamples::default();
+    let mut capped = 0;
+    for i in 0..n {
+        let hit = Hit {
+            origin: rays.origin[i],
+            direction: rays.direction[i],
+            t: hits.t[i],
+            slot: hits.slot[i],
+            barycentric: hits.barycentric[i],
+        };
+        let mut path = PathView {
+            throughput: &mut paths.throughput[i],
+            radiance: &mut paths.radiance[i],
+            count_emission: &mut paths.count_emission[i],
+            bsdf_pdf: &mut paths.bsdf_pdf[i],
+            alive: &mut paths.alive[i],
+            next_origin: &mut next_rays.origin[i],
+            next_direction: &mut next_rays.direction[i],
+        };
+        let chunk = i * per..(i + 1) * per;
+        let next_event = NextEvent {
+            salts,
+            samples: &mut light_samples,
+            shadow: ShadowView {
+                count: &mut shadows.count[i],
+                origin: &mut shadows.origin[i],
+                direction: &mut shadows.direction[chunk.clone()],
+                t_max: &mut shadows.t_max[chunk.clone()],
+                contribution: &mut shadows.contribution[chunk],
             },
-        )
-        .sum()
+        };
+        capped += u64::from(shade_one(
+            scene,
+            &params,
+            paths.rng_key[i],
+            hit,
+            &mut path,
+            next_event,
+        ));
+    }
+    capped
 }
 
 /// The ray and what it hit.

@@ -5,38 +5,35 @@
 use super::batch::{PathState, ShadowBatch};
 use crate::flatten::FlatScene;
 use crate::flatten::bvh::{PACKET_SIZE, Packet};
-use rayon::prelude::*;
 
 /// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
 /// Returns the number of shadow rays traced.
 pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
-    let (n, per) = (paths.len(), shadows.per_path);
-    (
-        &mut paths.radiance,
-        &shadows.count[..n],
-        &shadows.origin[..n],
-        shadows.direction[..n * per].par_chunks(per),
-        shadows.t_max[..n * per].par_chunks(per),
-        shadows.contribution[..n * per].par_chunks(per),
-    )
-        .into_par_iter()
-        .with_min_len(64)
-        .map(
-            |(radiance, &count, &origin, direction, t_max, contribution)| {
-                let count = count as usize;
-                for first in (0..count).step_by(PACKET_SIZE) {
-                    let rays = first..(first + PACKET_SIZE).min(count);
-                    let packet =
-                        Packet::new(origin, &direction[rays.clone()], &t_max[rays.clone()]);
-                    let occluded = scene.occluded_packet(&packet);
-                    for (k, c) in contribution[rays].iter().enumerate() {
-                        if occluded & (1 << k) == 0 {
-                            *radiance += *c;
-                        }
-                    }
+    let per = shadows.per_path;
+    let mut traced = 0;
+    for (i, radiance) in paths.radiance.iter_mut().enumerate() {
+        let count = shadows.count[i] as usize;
+        let chunk = i * per..i * per + count;
+        let (direction, t_max) = (
+            &shadows.direction[chunk.clone()],
+            &shadows.t_max[chunk.clone()],
+        );
+        let contribution = &shadows.contribution[chunk];
+        for first in (0..count).step_by(PACKET_SIZE) {
+            let rays = first..(first + PACKET_SIZE).min(count);
+            let packet = Packet::new(
+                shadows.origin[i],
+                &direction[rays.clone()],
+                &t_max[rays.clone()],
+            );
+            let occluded = scene.occluded_packet(&packet);
+            for (k, c) in contribution[rays].iter().enumerate() {
+                if occluded & (1 << k) == 0 {
+                    *radiance += *c;
                 }
-                count as u64
-            },
-        )
-        .sum()
+            }
+        }
+        traced += count as u64;
+    }
+    traced
 }

@@ -31,6 +31,22 @@ pub struct RenderStats {
 pub const STAGE_NAMES: [&str; 5] = ["generate", "intersect", "shade", "shadow", "film"];
 
 impl RenderStats {
+    /// The counts and stage times of two parts of a render added up (for batches traced in
+    /// parallel; the stage times become CPU time).
+    pub fn merged(self, other: RenderStats) -> RenderStats {
+        let mut sum = self;
+        for (t, o) in sum.stage_time.iter_mut().zip(other.stage_time) {
+            *t += o;
+        }
+        sum.camera_rays += other.camera_rays;
+        sum.bounce_rays += other.bounce_rays;
+        sum.shadow_rays += other.shadow_rays;
+        sum.samples += other.samples;
+        sum.capped_paths += other.capped_paths;
+        sum.rejected_samples += other.rejected_samples;
+        sum
+    }
+
     /// All rays traced.
     pub fn total_rays(&self) -> u64 {
         self.camera_rays + self.bounce_rays + self.shadow_rays
