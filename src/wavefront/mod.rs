@@ -24,6 +24,8 @@ use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use rayon::prelude::*;
 use shade::ShadeParams;
 use stats::RenderStats;
+use std::ops::{Deref, DerefMut};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// Reported after every batch; the callback decides whether to go on.
@@ -71,6 +73,10 @@ pub fn render(
     let mut film = Film::new(settings.width, settings.height);
     let mut stats = RenderStats::default();
     let samples_total = pixel_count as u64 * settings.spp as u64;
+    let spare_buffers = BufferPool {
+        shadow_rays_per_path: settings.shadow_rays.max(1) as usize,
+        spare: Mutex::new(Vec::new()),
+    };
 
     'passes: for sample_index in 0..settings.spp {
         for first in (0..pixel_count).step_by(round_size as usize) {
@@ -78,13 +84,7 @@ pub fn render(
             let round = film
                 .regions_mut(pixels, batch_size as usize)
                 .map_init(
-                    || Buffers {
-                        shadows: ShadowBatch {
-                            per_path: settings.shadow_rays.max(1) as usize,
-                            ..Default::default()
-                        },
-                        ..Default::default()
-                    },
+                    || spare_buffers.lend(),
                     |buffers, mut region| {
                         let batch = Batch {
                             scene,
@@ -111,6 +111,62 @@ pub fn render(
     stats.complete_spp = (stats.samples / pixel_count as u64) as u32;
     stats.wall_time = start.elapsed();
     Ok((film, stats))
+}
+
+/// Work buffers not in use, so that every job of every round reuses the buffers (and the
+/// memory pages) of an earlier one: there are never more than the jobs running at once.
+struct BufferPool {
+    shadow_rays_per_path: usize,
+    spare: Mutex<Vec<Buffers>>,
+}
+
+impl BufferPool {
+    /// Spare buffers, or new ones; they return to the pool when the loan is dropped.
+    fn lend(&self) -> BufferLoan<'_> {
+        let spare = self
+            .spare
+            .lock()
+            .expect("no panic while holding the lock")
+            .pop();
+        BufferLoan {
+            buffers: spare.unwrap_or_else(|| Buffers {
+                shadows: ShadowBatch {
+                    per_path: self.shadow_rays_per_path,
+                    ..Default::default()
+                },
+                ..Default::default()
+            }),
+            pool: self,
+        }
+    }
+}
+
+/// Buffers lent by a [`BufferPool`].
+struct BufferLoan<'a> {
+    buffers: Buffers,
+    pool: &'a BufferPool,
+}
+
+impl Deref for BufferLoan<'_> {
+    type Target = Buffers;
+    fn deref(&self) -> &Buffers {
+        &self.buffers
+    }
+}
+
+impl DerefMut for BufferLoan<'_> {
+    fn deref_mut(&mut self) -> &mut Buffers {
+        &mut self.buffers
+    }
+}
+
+impl Drop for BufferLoan<'_> {
+    fn drop(&mut self) {
+        let buffers = std::mem::take(&mut self.buffers);
+        if let Ok(mut spare) = self.pool.spare.lock() {
+            spare.push(buffers);
+        }
+    }
 }
 
 /// Paths traced between two progress reports (a round of batches traced in parallel): short
