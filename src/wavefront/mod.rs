@@ -28,7 +28,7 @@ use std::ops::{Deref, DerefMut};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-/// Reported after every batch; the callback decides whether to go on.
+/// Reported after every round of batches; the callback decides whether to go on.
 #[derive(Clone, Copy, Debug)]
 pub struct Progress {
     /// Paths (samples) finished so far.
@@ -42,12 +42,12 @@ pub struct Progress {
 pub enum Flow {
     /// Keep rendering.
     Continue,
-    /// Stop at this batch boundary; the film keeps the samples finished so far.
+    /// Stop at this round's end; the film keeps the samples finished so far.
     Stop,
 }
 
-/// The work buffers of one batch, reused by every bounce (and by the batches that follow on
-/// the same thread within a round).
+/// The work buffers of one batch, reused by every bounce (and by later batches: see
+/// [`BufferPool`]).
 #[derive(Default)]
 struct Buffers {
     paths: PathState,
@@ -79,21 +79,19 @@ pub fn render(
     };
 
     'passes: for sample_index in 0..settings.spp {
+        let batch = Batch {
+            scene,
+            camera: &camera,
+            settings,
+            sample_index,
+        };
         for first in (0..pixel_count).step_by(round_size as usize) {
             let pixels = first..(first + round_size).min(pixel_count);
             let round = film
                 .regions_mut(pixels, batch_size as usize)
                 .map_init(
                     || spare_buffers.lend(),
-                    |buffers, mut region| {
-                        let batch = Batch {
-                            scene,
-                            camera: &camera,
-                            settings,
-                            sample_index,
-                        };
-                        batch.trace(&mut region, buffers)
-                    },
+                    |buffers, mut region| batch.trace(&mut region, buffers),
                 )
                 .reduce(RenderStats::default, RenderStats::merged);
             stats = stats.merged(round);
