@@ -191,4 +191,47 @@ mod tests {
         assert_eq!(image.pixels[1], Rgb::ZERO);
         assert_eq!(film.min_samples(), 0);
     }
+
+    #[test]
+    fn regions_filled_in_parallel_match_samples_added_one_by_one() {
+        // Two passes over pixels 5..1005 of a 40 x 30 film, some samples NaN or infinite.
+        let radiance = |pass: u32, pixel: u32| {
+            let u = |d| crate::math::rng::uniform(pixel as u64, pass, d);
+            let c = Rgb::new(u(0), u(1), u(2));
+            match u(3) {
+                x if x < 0.05 => Rgb::new(f32::NAN, c.y, c.z),
+                x if x < 0.1 => Rgb::new(c.x, f32::INFINITY, c.z),
+                _ => c,
+            }
+        };
+        let pixels = 5..1005;
+        let (mut one_by_one, mut regions) = (Film::new(40, 30), Film::new(40, 30));
+        for pass in 0..2 {
+            for p in pixels.clone() {
+                one_by_one.add_sample(p, radiance(pass, p));
+            }
+            regions.rejected_samples += regions
+                .regions_mut(pixels.clone(), 64)
+                .map(|mut region| {
+                    for p in region.pixels() {
+                        region.add_sample(p, radiance(pass, p));
+                    }
+                    region.rejected_samples
+                })
+                .sum::<u64>();
+        }
+        // The regions tile the range in order, the last one shorter.
+        let tiles: Vec<Range<u32>> = regions
+            .regions_mut(pixels.clone(), 64)
+            .map(|r| r.pixels())
+            .collect();
+        assert_eq!(tiles.len(), 16);
+        assert_eq!(tiles[0], 5..69);
+        assert!(tiles.windows(2).all(|t| t[0].end == t[1].start));
+        assert_eq!(tiles[15], 965..1005);
+        assert!(one_by_one.rejected_samples > 0);
+        assert_eq!(regions.rejected_samples, one_by_one.rejected_samples);
+        assert_eq!(regions.samples, one_by_one.samples);
+        assert_eq!(regions.sum, one_by_one.sum);
+    }
 }
