@@ -1,6 +1,6 @@
-//! Structure-of-arrays work buffers passed between the stages. They are allocated once per
-//! render and reused for every bounce and batch; index `i` of every buffer of a bounce refers
-//! to the same live path.
+//! Structure-of-arrays work buffers passed between the stages. Each set is allocated once
+//! per worker thread and render and reused for every bounce and batch; index `i` of every
+//! buffer of a bounce refers to the same live path.
 
 use crate::film::FilmRegion;
 use crate::math::{Rgb, Vec2, Vec3A};
@@ -114,7 +114,7 @@ pub struct ShadowBatch {
 impl ShadowBatch {
     /// Makes room for `paths` live paths. It only ever grows: the stages read the first
     /// `paths` entries, which shading overwrites, so shrinking and refilling the buffers at
-    /// every batch (tens of megabytes, on one thread) would be wasted work.
+    /// every batch and bounce would be wasted work.
     pub fn grow_to(&mut self, paths: usize) {
         if self.origin.len() < paths {
             let n = paths * self.per_path;
