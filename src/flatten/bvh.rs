@@ -722,9 +722,11 @@ impl Bvh4 {
         let box_min = packet.segments_min.to_array().map(Vec4::splat);
         let box_max = packet.segments_max.to_array().map(Vec4::splat);
         let occluded = Cell::new(0u32);
-        // Small trees skip it: there the subtrees it could cut are small too (in the seed
-        // room it cost 5% more instructions per path and saved nothing).
-        let confirm = self.nodes.len() >= CONFIRMED_PACKET_NODES;
+        // The rays prepared once for the ray-by-ray confirmation below. Small trees skip it:
+        // there the subtrees it could cut are small too (in the seed room it cost 5% more
+        // instructions per path and saved nothing).
+        let box_rays: Option<[BoxRay; PACKET_SIZE]> = (self.nodes.len() >= CONFIRMED_PACKET_NODES)
+            .then(|| std::array::from_fn(|k| BoxRay::new(origin, directions[k.min(n - 1)])));
         let enter = |node: &Node4| {
             let (mut t_near, mut t_far) = (Vec4::ZERO, packet_t_max);
             for &(near, far, lo, hi, o) in axes {
@@ -739,19 +741,19 @@ impl Bvh4 {
             }
             // The packet bounds are loose when its rays spread wide (a large light seen from
             // nearby), and such packets walked, and tested, much of a large mesh (the stage
-            // benchmark's heavy scene: 21.7 s -> 0.34 s). So a child passes only if one of
+            // benchmark's heavy scene: 21.7 s -> 0.31 s). So a child passes only if one of
             // the rays still open enters it, tested ray by ray until every candidate is
             // confirmed; in a coherent packet the first ray usually confirms them all.
             let candidates = overlap.bitmask();
-            if !confirm {
+            let Some(box_rays) = &box_rays else {
                 return candidates;
-            }
+            };
             let mut entered = 0;
             let mut open = all & !occluded.get();
             while candidates & !entered != 0 && open != 0 {
                 let k = open.trailing_zeros() as usize;
                 open &= open - 1;
-                entered |= BoxRay::new(origin, directions[k]).test(node, t_max[k]).1;
+                entered |= box_rays[k].test(node, t_max[k]).1;
             }
             entered & candidates
         };
