@@ -10,7 +10,7 @@ use signal_hook::consts::{SIGINT, SIGTERM};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use wavetrace::scene::load::{LoadOptions, load_scene_with};
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
@@ -156,13 +156,27 @@ fn error_chain(e: &anyhow::Error) -> String {
 /// file of an image write in progress (the output file itself is only ever renamed into place).
 fn watch_stop_signals(output: &Path) -> Result<Arc<AtomicI32>> {
     let temporary = wavetrace::output::temporary_path(output);
+    let received = Arc::new(AtomicI32::new(0));
+    // Deliveries are counted inside the handler: the iterator below reports a signal that
+    // arrived twice before its thread woke up only once, which would lose a quick double Ctrl-C.
+    let deliveries = Arc::new(AtomicUsize::new(0));
+    for signal in [SIGINT, SIGTERM] {
+        let (received, deliveries) = (Arc::clone(&received), Arc::clone(&deliveries));
+        // SAFETY: the action only stores to and increments atomics, which is signal-safe.
+        unsafe {
+            signal_hook::low_level::register(signal, move || {
+                received.store(signal, Ordering::SeqCst);
+                deliveries.fetch_add(1, Ordering::SeqCst);
+            })
+        }
+        .context("cannot install the SIGINT/SIGTERM handler")?;
+    }
+    // Registered after the counting actions, so they have run whenever this thread wakes.
     let mut signals = signal_hook::iterator::Signals::new([SIGINT, SIGTERM])
         .context("cannot install the SIGINT/SIGTERM handler")?;
-    let received = Arc::new(AtomicI32::new(0));
-    let seen = Arc::clone(&received);
     std::thread::spawn(move || {
         for signal in signals.forever() {
-            if seen.swap(signal, Ordering::SeqCst) != 0 {
+            if deliveries.load(Ordering::SeqCst) >= 2 {
                 eprintln!(
                     "\nwavetrace: {} again, quitting at once",
                     signal_name(signal)

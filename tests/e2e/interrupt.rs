@@ -128,13 +128,13 @@ fn sigterm_writes_the_samples_finished_so_far() {
 fn a_second_sigint_quits_at_once_without_an_image() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("room.exr");
-    // One batch of 512x512 paths with 16 shadow rays per hit takes about a second of both
-    // cores, far longer than the 5 ms between the two signals (plus starting `kill` twice on
-    // a busy machine), so both arrive before the render reaches a batch boundary.
+    // One batch of 512x512 paths with 256 shadow rays per hit takes about 3.4 s of one core
+    // (0.5 s with 16), far longer than the 5 ms between the two signals plus starting `kill`
+    // twice on a busy machine, so both arrive before the render reaches a batch boundary.
     let stopped = render_and_signal(
         dir.path(),
         &output,
-        (512, 512 * 512, 16),
+        (512, 512 * 512, 256),
         &["INT", "INT"],
         Duration::from_millis(5),
     );
