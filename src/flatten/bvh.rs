@@ -104,8 +104,7 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
         };
         (params, MAX_LEAF_SIZE)
     };
-    let aabbs: Vec<Aabb> = shapes.par_iter().map(Shape::aabb).collect();
-    let bvh2 = build_bvh2(&aabbs, params);
+    let bvh2 = build_bvh2(shapes, params);
     let mut bvh = Bvh4 {
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).
@@ -115,10 +114,10 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
     };
     let mut order = Vec::with_capacity(shapes.len());
     if !shapes.is_empty() {
-        let leaf_sizes = leaf_sizes(&bvh2, max_leaf_size, params.collapse_traversal_cost);
         let tree = BinaryTree {
             bvh2: &bvh2,
-            leaf_sizes: &leaf_sizes,
+            max_leaf_size,
+            node_cost: params.collapse_traversal_cost,
         };
         bvh.depth = tree.collapse(&[0], &mut bvh.nodes, &mut order, MAX_DEPTH);
         bvh.leaf_lanes = bvh
@@ -131,15 +130,15 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
 }
 
 /// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
-/// the steps of its `build_bvh2` without its leaf collapse (which [`leaf_sizes`] replaces)
+/// the steps of its `build_bvh2` without its leaf collapse (which [`BinaryTree::collapse`] replaces)
 /// and without the validation that build runs with debug assertions on: that one panics on
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
-fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
-    let indices = (0..aabbs.len() as u32).collect();
-    let mut bvh2 = obvhs::ploc::PlocBuilder::with_capacity(aabbs.len()).build(
+fn build_bvh2(shapes: &[Shape], params: BvhBuildParams) -> Bvh2 {
+    let indices = (0..shapes.len() as u32).collect();
+    let mut bvh2 = obvhs::ploc::PlocBuilder::with_capacity(shapes.len()).build(
         params.ploc_search_distance,
-        aabbs,
+        shapes,
         indices,
         params.sort_precision,
         params.search_depth_threshold,
@@ -154,62 +153,50 @@ fn build_bvh2(aabbs: &[Aabb], params: BvhBuildParams) -> Bvh2 {
     bvh2
 }
 
-/// Per binary node, the number of primitives below it if its subtree becomes one leaf of
-/// the 4-wide tree, else 0. A subtree of at most `max_leaf_size` primitives becomes a leaf
-/// when that lowers its surface area cost (testing all its primitives against keeping its
-/// nodes, each costing `node_cost` primitive tests), so that far-apart primitives stay apart.
-fn leaf_sizes(bvh2: &Bvh2, max_leaf_size: u32, node_cost: f32) -> Vec<u32> {
-    let nodes = &bvh2.nodes;
-    let mut size = vec![0u32; nodes.len()];
-    let mut cost = vec![0f32; nodes.len()];
-    let visit = |n: u32| {
-        let n = n as usize;
-        let node = &nodes[n];
-        let area = node.aabb().half_area();
-        if node.is_leaf() {
-            size[n] = node.prim_count;
-            cost[n] = area * node.prim_count as f32;
-            return;
-        }
-        let (left, right) = (node.first_index as usize, node.first_index as usize + 1);
-        let split_cost = area * node_cost + cost[left] + cost[right];
-        let merged = size[left] + size[right];
-        let fits = size[left] > 0 && size[right] > 0 && merged <= max_leaf_size;
-        if fits && area * merged as f32 <= split_cost {
-            size[n] = merged;
-            cost[n] = area * merged as f32;
-        } else {
-            cost[n] = split_cost;
-        }
-    };
-    // Children before parents: PLOC stores every parent before its children; reinsertion
-    // moves nodes, after which a depth-first order is made.
-    if bvh2.children_are_ordered_after_parents {
-        (0..nodes.len() as u32).rev().for_each(visit);
-    } else {
-        let mut pre_order = Vec::with_capacity(nodes.len());
-        let mut stack = vec![0u32];
-        while let Some(n) = stack.pop() {
-            pre_order.push(n);
-            let node = &nodes[n as usize];
-            if !node.is_leaf() {
-                stack.extend([node.first_index, node.first_index + 1]);
-            }
-        }
-        pre_order.into_iter().rev().for_each(visit);
-    }
-    size
-}
-
-/// The binary BVH with its leaves chosen by [`leaf_sizes`].
+/// The binary BVH, read top-down by [`BinaryTree::collapse`], which decides its leaves on
+/// the way: a subtree of at most `max_leaf_size` primitives becomes one leaf of the 4-wide
+/// tree when that lowers its surface area cost (testing all its primitives against keeping
+/// its nodes, each costing `node_cost` primitive tests), so that far-apart primitives stay
+/// apart. Only subtrees that small can become leaves, so the decision looks at a handful of
+/// nodes below the one asked about, and no pass over the whole binary tree is needed.
 struct BinaryTree<'a> {
     bvh2: &'a Bvh2,
-    leaf_sizes: &'a [u32],
+    max_leaf_size: u32,
+    node_cost: f32,
 }
 
 impl BinaryTree<'_> {
-    fn is_leaf(&self, n: u32) -> bool {
-        self.leaf_sizes[n as usize] > 0
+    /// The number of primitives of the leaf that binary node `n` becomes, or 0 if it stays
+    /// an inner node.
+    fn leaf_size(&self, n: u32) -> u32 {
+        let node = &self.bvh2.nodes[n as usize];
+        if node.is_leaf() {
+            return node.prim_count;
+        }
+        self.merged_leaf(n, self.max_leaf_size)
+            .map_or(0, |(size, _)| size)
+    }
+
+    /// If the subtree of `n` becomes one leaf of at most `budget` primitives: its size and
+    /// surface area cost. Each level down leaves the sibling at least one primitive of the
+    /// budget, so at most `2^budget` nodes are read.
+    fn merged_leaf(&self, n: u32, budget: u32) -> Option<(u32, f32)> {
+        let node = &self.bvh2.nodes[n as usize];
+        let area = node.aabb().half_area();
+        if node.is_leaf() {
+            let size = node.prim_count;
+            return (size <= budget).then_some((size, area * size as f32));
+        }
+        if budget < 2 {
+            return None;
+        }
+        let (left_size, left_cost) = self.merged_leaf(node.first_index, budget - 1)?;
+        let (right_size, right_cost) =
+            self.merged_leaf(node.first_index + 1, budget - left_size)?;
+        let size = left_size + right_size;
+        let merged_cost = area * size as f32;
+        (merged_cost <= area * self.node_cost + left_cost + right_cost)
+            .then_some((size, merged_cost))
     }
 
     /// Appends the 4-wide node made of the binary nodes `children` (expanded until there are
@@ -229,20 +216,23 @@ impl BinaryTree<'_> {
             return MAX_DEPTH + 1;
         }
         let bvh2 = &self.bvh2.nodes;
-        let mut lanes = ArrayVec4::from(children);
-        while lanes.len() < 4 {
+        let with_size = |n: u32| (n, self.leaf_size(n));
+        let mut lanes = Lanes::default();
+        children.iter().for_each(|&n| lanes.push(with_size(n)));
+        while lanes.len < 4 {
             // Open the inner child with the largest surface: it is the most likely to be entered.
             let widest = lanes
+                .as_slice()
                 .iter()
                 .enumerate()
-                .filter(|(_, n)| !self.is_leaf(**n))
+                .filter(|(_, (_, leaf_size))| *leaf_size == 0)
                 .max_by(|a, b| {
                     let area = |n: u32| bvh2[n as usize].aabb().half_area();
-                    area(*a.1).total_cmp(&area(*b.1))
+                    area(a.1.0).total_cmp(&area(b.1.0))
                 });
-            let Some((k, &n)) = widest else { break };
+            let Some((k, &(n, _))) = widest else { break };
             let first = bvh2[n as usize].first_index;
-            lanes.replace_with_two(k, first, first + 1);
+            lanes.replace_with_two(k, with_size(first), with_size(first + 1));
         }
         let index = nodes.len();
         nodes.push(Node4 {
@@ -258,16 +248,16 @@ impl BinaryTree<'_> {
             count: [0; 4],
         });
         let mut depth = 1;
-        for (k, &n) in lanes.as_slice().iter().enumerate() {
+        for (k, &(n, leaf_size)) in lanes.as_slice().iter().enumerate() {
             let b = &bvh2[n as usize];
             let aabb = b.aabb();
             for axis in 0..3 {
                 nodes[index].bounds[axis][k] = aabb.min[axis];
                 nodes[index].bounds[axis + 3][k] = aabb.max[axis];
             }
-            if self.is_leaf(n) {
+            if leaf_size > 0 {
                 nodes[index].child[k] = order.len() as u32;
-                nodes[index].count[k] = self.leaf_sizes[n as usize];
+                nodes[index].count[k] = leaf_size;
                 self.append_primitives(n, order);
             } else {
                 nodes[index].child[k] = nodes.len() as u32;
@@ -294,36 +284,26 @@ impl BinaryTree<'_> {
     }
 }
 
-/// Up to four binary nodes that become the lanes of one 4-wide node (no allocation per node).
-struct ArrayVec4 {
-    items: [u32; 4],
+/// Up to four binary nodes that become the lanes of one 4-wide node, each with its leaf size
+/// (no allocation per node).
+#[derive(Default)]
+struct Lanes {
+    items: [(u32, u32); 4],
     len: usize,
 }
 
-impl ArrayVec4 {
-    fn from(children: &[u32]) -> Self {
-        let mut items = [0; 4];
-        items[..children.len()].copy_from_slice(children);
-        ArrayVec4 {
-            items,
-            len: children.len(),
-        }
-    }
-
-    fn len(&self) -> usize {
-        self.len
-    }
-
-    fn as_slice(&self) -> &[u32] {
+impl Lanes {
+    fn as_slice(&self) -> &[(u32, u32)] {
         &self.items[..self.len]
     }
 
-    fn iter(&self) -> std::slice::Iter<'_, u32> {
-        self.as_slice().iter()
+    fn push(&mut self, item: (u32, u32)) {
+        self.items[self.len] = item;
+        self.len += 1;
     }
 
-    /// Replaces item `k` by `a` and `b` (in that order); needs room for one more.
-    fn replace_with_two(&mut self, k: usize, a: u32, b: u32) {
+    /// Replaces lane `k` by `a` and `b` (in that order); needs room for one more.
+    fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
         self.items.copy_within(k + 1..self.len, k + 2);
         (self.items[k], self.items[k + 1]) = (a, b);
         self.len += 1;
@@ -781,9 +761,10 @@ fn safe_inverse3(v: Vec3A) -> Vec3A {
     Vec3A::select(tiny, stand_in, v).recip()
 }
 
-impl Shape {
+/// The builder reads each primitive's box straight from its shape (no array of boxes).
+impl obvhs::Boundable for Shape {
     /// World-space bounding box.
-    pub fn aabb(&self) -> Aabb {
+    fn aabb(&self) -> Aabb {
         match self {
             Shape::Triangle(t) => {
                 let (v1, v2) = (t.v0 + t.e1, t.v0 + t.e2);
@@ -795,7 +776,9 @@ impl Shape {
             ),
         }
     }
+}
 
+impl Shape {
     /// Hit distance in `[0, t_max]`, or infinity.
     #[inline(always)]
     pub fn intersect_t(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> f32 {
