@@ -209,6 +209,68 @@ pub struct LightTable {
     pub delta_lights: Vec<DeltaLight>,
     /// Running sum of the lights' power, area lights then punctual ones; the last entry is the total.
     pub power_cdf: Vec<f32>,
+    /// When every light is a one-sided triangle and they lie in a few planes: those planes.
+    /// A point behind all of them gets no light (see [`LightTable::all_behind`]).
+    emitting_planes: Vec<EmittingPlane>,
+}
+
+/// A plane of one-sided triangle lights, which emit toward `normal`: `normal . x = offset`.
+#[derive(Clone, Copy, Debug)]
+struct EmittingPlane {
+    normal: Vec3A,
+    offset: f32,
+    /// The largest coordinate magnitude of the plane's lights, which scales their rounding.
+    extent: f32,
+}
+
+/// [`LightTable::all_behind`] keeps at most this many planes: beyond, the test costs more
+/// than it saves.
+const MAX_EMITTING_PLANES: usize = 8;
+
+/// How far behind the planes (relative to the coordinates' magnitude) a point must lie for
+/// [`LightTable::all_behind`]: far more than the rounding of a light sample's direction,
+/// so that no sample it skips could have had a positive cosine at the light.
+const BEHIND_MARGIN: f32 = 1e-4;
+
+/// The planes of `lights` if all are one-sided triangles lying in at most
+/// [`MAX_EMITTING_PLANES`] planes (and there are no punctual lights), else none.
+fn emitting_planes(lights: &[AreaLight], delta_lights: &[DeltaLight]) -> Vec<EmittingPlane> {
+    let mut planes: Vec<EmittingPlane> = Vec::new();
+    if !delta_lights.is_empty() {
+        return planes;
+    }
+    for light in lights {
+        let Shape::Triangle(t) = light.shape else {
+            return Vec::new();
+        };
+        if light.two_sided || light.normal == Vec3A::ZERO {
+            return Vec::new();
+        }
+        let vertices = [t.v0, t.v0 + t.e1, t.v0 + t.e2];
+        let extent = vertices
+            .map(|v| v.abs().max_element())
+            .into_iter()
+            .fold(0.0, f32::max);
+        let coplanar = |plane: &EmittingPlane| {
+            let tolerance = 1e-6 * plane.extent.max(extent);
+            plane.normal.dot(light.normal) > 1.0 - 1e-6
+                && vertices
+                    .iter()
+                    .all(|v| (plane.normal.dot(*v) - plane.offset).abs() <= tolerance)
+        };
+        if let Some(plane) = planes.iter_mut().find(|plane| coplanar(plane)) {
+            plane.extent = plane.extent.max(extent);
+        } else if planes.len() < MAX_EMITTING_PLANES {
+            planes.push(EmittingPlane {
+                normal: light.normal,
+                offset: light.normal.dot(t.v0),
+                extent,
+            });
+        } else {
+            return Vec::new();
+        }
+    }
+    planes
 }
 
 impl LightTable {
@@ -241,10 +303,25 @@ impl LightTable {
             l.select_probability = probability(p);
         }
         LightTable {
+            emitting_planes: emitting_planes(&lights, &delta_lights),
             lights,
             delta_lights,
             power_cdf,
         }
+    }
+
+    /// Whether `p` lies behind every light, so that no light sample taken from it could
+    /// shine on it: true only when all lights are one-sided triangles in a few planes (see
+    /// [`emitting_planes`]) and `p` is clearly behind each plane. Lets shading skip the light
+    /// samples of, say, a ceiling above a ceiling light, which would all come out zero.
+    #[inline]
+    pub fn all_behind(&self, p: Vec3A) -> bool {
+        let magnitude = p.abs().max_element();
+        !self.emitting_planes.is_empty()
+            && self.emitting_planes.iter().all(|plane| {
+                let margin = BEHIND_MARGIN * (plane.extent + magnitude);
+                plane.normal.dot(p) - plane.offset < -margin
+            })
     }
 
     /// Whether the scene has any light to sample.
@@ -425,6 +502,60 @@ mod tests {
         let below = Vec3A::new(0.6, 0.6, -1.0);
         let (_, _, _, weight) = sample_one(&table, below, 0.75, Vec2::new(0.3, 0.3));
         assert_eq!(weight, Rgb::ZERO);
+    }
+
+    #[test]
+    fn points_behind_all_lights_get_no_light_from_any_sample() {
+        // The seed room's light: a quad at z = 4.99 facing down, its two triangles coplanar.
+        let [a, b, c, d] =
+            [[4.0, 1.0], [6.0, 1.0], [6.0, -1.0], [4.0, -1.0]].map(|[x, y]| Vec3A::new(x, y, 4.99));
+        let light = |p: [Vec3A; 3]| {
+            AreaLight::new(
+                Shape::Triangle(TriangleGeom::new(p[0], p[1], p[2])),
+                Rgb::ONE,
+                false,
+            )
+        };
+        let quad = vec![light([a, b, c]), light([a, c, d])];
+        let table = LightTable::new(quad.clone(), vec![]);
+        assert_eq!(table.emitting_planes.len(), 1);
+        let mut samples = LightSamples::default();
+        let mut rng = 1u64;
+        let mut uniform = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut behind = 0;
+        for _ in 0..2000 {
+            // Points around the light's plane, down to a hair's breadth from it.
+            let height = 4.99 + (uniform() - 0.5) * 10f32.powf(-4.0 * uniform());
+            let p = Vec3A::new(20.0 * uniform() - 5.0, 20.0 * uniform() - 10.0, height);
+            if !table.all_behind(p) {
+                assert!(height < 4.99 + 1e-2, "{p} is clearly behind the light");
+                continue;
+            }
+            behind += 1;
+            assert!(height > 4.99, "{p} is in front of the light");
+            let uniforms: Vec<_> = (0..LIGHT_LANES)
+                .map(|_| (uniform(), Vec2::new(uniform(), uniform())))
+                .collect();
+            table.sample(p, &uniforms, &mut samples);
+            assert!(
+                samples.scale.iter().all(|&s| s == 0.0),
+                "{p}: {:?}",
+                samples.scale
+            );
+        }
+        assert!(behind > 500, "{behind}");
+        // Lights the test cannot reason about: none is ever skipped.
+        let two_sided = AreaLight::new(quad[0].shape, Rgb::ONE, true);
+        let sun = DeltaLight::directional(Vec3A::NEG_Z, Rgb::ONE, 1.0);
+        let above = Vec3A::new(5.0, 0.0, 6.0);
+        assert!(table.all_behind(above));
+        assert!(!LightTable::new(vec![two_sided], vec![]).all_behind(above));
+        assert!(!LightTable::new(quad, vec![sun]).all_behind(above));
     }
 
     #[test]

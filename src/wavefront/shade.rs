@@ -215,8 +215,14 @@ fn shade_one(
         let front_normal = if front { ng } else { -ng };
         let origin = offset_ray_origin(p, p_error, ng, front_normal);
         *shadow.origin = origin;
+        // Behind every light (a ceiling above a ceiling light) all samples would be zero.
+        let samples_needed = if scene.lights.all_behind(origin) {
+            0
+        } else {
+            salts.len()
+        };
         let mut uniforms = [(0.0, Vec2::ZERO); LIGHT_LANES];
-        for chunk_salts in salts.chunks(LIGHT_LANES) {
+        for chunk_salts in salts[..samples_needed].chunks(LIGHT_LANES) {
             let lanes = chunk_salts.len();
             for (u, &salt) in uniforms.iter_mut().zip(chunk_salts) {
                 *u = rng::uniform3_salted(key, salt);
