@@ -14,6 +14,7 @@
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use wavetrace::flatten::bvh::ClosestHitStack;
 use wavetrace::math::{Vec3, Vec3A};
 use wavetrace::scene::{Camera, Material, Mesh, Name};
 
@@ -100,7 +101,10 @@ fn median_seconds(threads: usize, repeats: usize, f: impl Fn() + Sync + Send) ->
 fn cast_closest(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
     rays.par_iter()
         .with_min_len(1024)
-        .filter(|&&(o, d, t)| scene.closest_hit(o, d, t).is_some())
+        .map_init(ClosestHitStack::default, |stack, &(o, d, t)| {
+            scene.closest_hit(stack, o, d, t).is_some()
+        })
+        .filter(|&hit| hit)
         .count()
 }
 
@@ -218,7 +222,9 @@ fn main() {
             ));
             let ours: Vec<Option<(u32, f32)>> = rays
                 .par_iter()
-                .map(|&(o, d, t)| scene.closest_hit(o, d, t))
+                .map_init(ClosestHitStack::default, |stack, &(o, d, t)| {
+                    scene.closest_hit(stack, o, d, t)
+                })
                 .collect();
             let agree = ours
                 .iter()

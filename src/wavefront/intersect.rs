@@ -1,6 +1,7 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
+use crate::flatten::bvh::ClosestHitStack;
 use crate::flatten::{FlatScene, Shape};
 use crate::math::Vec2;
 
@@ -10,10 +11,11 @@ pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch
     hits.t.resize(n, 0.0);
     hits.slot.resize(n, NO_HIT);
     hits.barycentric.resize(n, Vec2::ZERO);
+    let mut stack = ClosestHitStack::default();
     for i in 0..n {
         let (origin, direction) = (rays.origin[i], rays.direction[i]);
         let (slot, t) = scene
-            .closest_hit(origin, direction, f32::INFINITY)
+            .closest_hit(&mut stack, origin, direction, f32::INFINITY)
             .unwrap_or((NO_HIT, f32::INFINITY));
         (hits.slot[i], hits.t[i]) = (slot, t);
         if let Some(Shape::Triangle(tri)) = scene.shapes.get(slot as usize) {
