@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use wavetrace::flatten::bvh::ClosestHitStack;
+use wavetrace::flatten::bvh::TraversalStack;
 use wavetrace::math::{Vec3, Vec3A};
 use wavetrace::scene::{Camera, Material, Mesh, Name};
 
@@ -101,7 +101,7 @@ fn median_seconds(threads: usize, repeats: usize, f: impl Fn() + Sync + Send) ->
 fn cast_closest(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
     rays.par_iter()
         .with_min_len(1024)
-        .map_init(ClosestHitStack::default, |stack, &(o, d, t)| {
+        .map_init(TraversalStack::default, |stack, &(o, d, t)| {
             scene.closest_hit(stack, o, d, t).is_some()
         })
         .filter(|&hit| hit)
@@ -113,7 +113,10 @@ fn cast_closest(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
 fn cast_occluded(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
     rays.par_iter()
         .with_min_len(1024)
-        .filter(|&&(o, d, t)| scene.occluded(o, d, t))
+        .map_init(TraversalStack::default, |stack, &(o, d, t)| {
+            scene.occluded(stack, o, d, t)
+        })
+        .filter(|&blocked| blocked)
         .count()
 }
 
@@ -198,7 +201,9 @@ fn main() {
             let reference = read_npy(&dir.join(format!("ref_{scene_name}_shadow_occluded.npy")));
             let ours: Vec<bool> = rays
                 .par_iter()
-                .map(|&(o, d, t)| scene.occluded(o, d, t))
+                .map_init(TraversalStack::default, |stack, &(o, d, t)| {
+                    scene.occluded(stack, o, d, t)
+                })
                 .collect();
             let agree = ours
                 .iter()
@@ -222,7 +227,7 @@ fn main() {
             ));
             let ours: Vec<Option<(u32, f32)>> = rays
                 .par_iter()
-                .map_init(ClosestHitStack::default, |stack, &(o, d, t)| {
+                .map_init(TraversalStack::default, |stack, &(o, d, t)| {
                     scene.closest_hit(stack, o, d, t)
                 })
                 .collect();

@@ -20,8 +20,6 @@ use std::cell::Cell;
 
 /// Largest supported depth of the 4-wide tree; the traversal stack holds `3 * MAX_DEPTH + 1` entries.
 pub const MAX_DEPTH: usize = 64;
-/// Trees up to this depth use a short stack: zeroing a long one costs more than traversing a small scene.
-const SHALLOW_DEPTH: usize = 10;
 /// Primitives per leaf at most, in large scenes: fewer, fuller leaves mean fewer nodes and
 /// cache misses (measured on the 1.3M-triangle ray sets: 10-20% faster than 1 or 2).
 /// Large scenes are built with obvhs's `fast_build` preset (PLOC with a short search)
@@ -317,14 +315,14 @@ const fn closest_stack_len(depth: usize) -> usize {
     3 * depth + 5
 }
 
-/// The closest-hit traversal's stack, kept by the caller and reused ray after ray (a fresh
-/// zeroed stack per ray cost about 6% of a ray's instructions in the seed room). Deep enough
-/// for any tree the build accepts ([`MAX_DEPTH`]).
-pub struct ClosestHitStack([u64; closest_stack_len(MAX_DEPTH)]);
+/// The stack of every traversal (closest hit, occlusion, packets), kept by the caller and
+/// reused ray after ray: a fresh zeroed stack per ray cost about 6% of a closest-hit ray's
+/// instructions in the seed room. Deep enough for any tree the build accepts ([`MAX_DEPTH`]).
+pub struct TraversalStack([u64; closest_stack_len(MAX_DEPTH)]);
 
-impl Default for ClosestHitStack {
+impl Default for TraversalStack {
     fn default() -> Self {
-        ClosestHitStack([0; closest_stack_len(MAX_DEPTH)])
+        TraversalStack([0; closest_stack_len(MAX_DEPTH)])
     }
 }
 
@@ -402,7 +400,7 @@ impl Bvh4 {
     #[inline(always)]
     pub fn closest_hit(
         &self,
-        stack: &mut ClosestHitStack,
+        stack: &mut TraversalStack,
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
@@ -434,7 +432,7 @@ impl Bvh4 {
     #[inline(always)]
     pub fn closest_hit_by_leaf(
         &self,
-        stack: &mut ClosestHitStack,
+        stack: &mut TraversalStack,
         origin: Vec3A,
         direction: Vec3A,
         mut t_max: f32,
@@ -493,6 +491,7 @@ impl Bvh4 {
     #[inline(always)]
     pub fn any_hit(
         &self,
+        stack: &mut TraversalStack,
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
@@ -500,6 +499,7 @@ impl Bvh4 {
     ) -> bool {
         let ray = BoxRay::new(origin, direction);
         self.walk_until(
+            stack,
             |node| ray.test(node, t_max).1,
             |slot| intersect(slot, t_max) < f32::INFINITY,
         )
@@ -509,23 +509,17 @@ impl Bvh4 {
     /// on the primitives of entered leaves until it returns true. Returns whether it did.
     /// Shared by the single-ray and the packet any-hit queries.
     #[inline(always)]
-    fn walk_until(&self, enter: impl FnMut(&Node4) -> u32, leaf: impl FnMut(u32) -> bool) -> bool {
-        if self.nodes.is_empty() {
-            false
-        } else if self.depth <= SHALLOW_DEPTH {
-            self.walk_until_with_stack::<{ 3 * SHALLOW_DEPTH + 1 }>(enter, leaf)
-        } else {
-            self.walk_until_with_stack::<{ 3 * MAX_DEPTH + 1 }>(enter, leaf)
-        }
-    }
-
-    #[inline(always)]
-    fn walk_until_with_stack<const STACK: usize>(
+    fn walk_until(
         &self,
+        stack: &mut TraversalStack,
         mut enter: impl FnMut(&Node4) -> u32,
         mut leaf: impl FnMut(u32) -> bool,
     ) -> bool {
-        let mut stack = [0u32; STACK];
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let stack = &mut stack.0;
+        stack[0] = 0;
         let mut top = 1;
         while top > 0 {
             top -= 1;
@@ -536,7 +530,7 @@ impl Bvh4 {
                 mask &= mask - 1;
                 let count = node.count[k];
                 if count == 0 {
-                    stack[top] = node.child[k];
+                    stack[top] = u64::from(node.child[k]);
                     top += 1;
                     continue;
                 }
@@ -632,6 +626,7 @@ impl Bvh4 {
     /// over more than one axis sign are traced one ray at a time.
     pub fn any_hit_packet(
         &self,
+        stack: &mut TraversalStack,
         packet: &Packet,
         mut intersect: impl FnMut(u32, u32) -> u32,
     ) -> u32 {
@@ -676,7 +671,7 @@ impl Bvh4 {
         if constrained < 2 {
             let mut occluded = 0;
             for k in 0..n {
-                if self.any_hit(origin, directions[k], t_max[k], |slot, _| {
+                if self.any_hit(stack, origin, directions[k], t_max[k], |slot, _| {
                     if intersect(slot, 1 << k) != 0 {
                         0.0
                     } else {
@@ -728,7 +723,7 @@ impl Bvh4 {
             }
             entered & candidates
         };
-        self.walk_until(enter, |slot| {
+        self.walk_until(stack, enter, |slot| {
             let blocked = occluded.get() | intersect(slot, all & !occluded.get());
             occluded.set(blocked);
             blocked == all
@@ -789,7 +784,7 @@ impl FlatScene {
     #[inline]
     pub fn closest_hit(
         &self,
-        stack: &mut ClosestHitStack,
+        stack: &mut TraversalStack,
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
@@ -808,17 +803,24 @@ impl FlatScene {
 
     /// Whether anything blocks the segment from `origin` to `origin + t_max direction`.
     #[inline]
-    pub fn occluded(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> bool {
+    pub fn occluded(
+        &self,
+        stack: &mut TraversalStack,
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+    ) -> bool {
         let prims = &self.leaf_prims;
-        self.bvh.any_hit(origin, direction, t_max, |slot, t_max| {
-            prims[slot as usize].hit_t(origin, direction, t_max)
-        })
+        self.bvh
+            .any_hit(stack, origin, direction, t_max, |slot, t_max| {
+                prims[slot as usize].hit_t(origin, direction, t_max)
+            })
     }
 
     /// Occlusion of up to [`PACKET_SIZE`] segments from one origin: bit `k` is set when
     /// segment `k` of the packet is blocked.
     #[inline]
-    pub fn occluded_packet(&self, packet: &Packet) -> u32 {
+    pub fn occluded_packet(&self, stack: &mut TraversalStack, packet: &Packet) -> u32 {
         let shapes = &self.shapes;
         let Packet {
             origin,
@@ -826,7 +828,7 @@ impl FlatScene {
             t_max,
             ..
         } = *packet;
-        self.bvh.any_hit_packet(packet, |slot, mut open| {
+        self.bvh.any_hit_packet(stack, packet, |slot, mut open| {
             let mut blocked = 0;
             match &shapes[slot as usize] {
                 Shape::Triangle(tri) => {
@@ -922,7 +924,7 @@ mod tests {
         assert!(bvh.depth > 2 && bvh.depth <= MAX_DEPTH);
         let mut hits = 0;
         // One stack for every ray, as the renderer uses it: what a ray leaves must not matter.
-        let mut stack = ClosestHitStack::default();
+        let mut stack = TraversalStack::default();
         for i in 0..4000 {
             let (origin, direction, t_max) = random_ray(2, i);
             let brute = brute_force_closest(&shapes, origin, direction, t_max);
@@ -930,7 +932,7 @@ mod tests {
                 shapes[s as usize].intersect_t(origin, direction, t)
             });
             assert_eq!(found.map(|h| h.1), brute.map(|h| h.1), "ray {i}");
-            let occluded = bvh.any_hit(origin, direction, t_max, |s, t| {
+            let occluded = bvh.any_hit(&mut stack, origin, direction, t_max, |s, t| {
                 shapes[s as usize].intersect_t(origin, direction, t)
             });
             assert_eq!(occluded, brute.is_some(), "ray {i}");
@@ -952,7 +954,7 @@ mod tests {
             .count();
         assert!(multi > 100, "leaves of several primitives: {multi}");
         let mut hits = 0;
-        let mut stack = ClosestHitStack::default();
+        let mut stack = TraversalStack::default();
         for i in 0..3000 {
             let (origin, direction, t_max) = random_ray(7, i);
             let brute = brute_force_closest(&shapes, origin, direction, t_max);
@@ -980,6 +982,7 @@ mod tests {
     }
 
     fn packets_agree_in(shapes: &[Shape], bvh: &Bvh4) {
+        let mut stack = TraversalStack::default();
         for i in 0..400 {
             let u = |d: u32| uniform(path_key(3, i, 0), 0, d);
             let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
@@ -996,7 +999,7 @@ mod tests {
                 (directions[k], t_max[k]) = (to.normalize(), to.length());
             }
             let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
-            let occluded = bvh.any_hit_packet(&packet, |s, open| {
+            let occluded = bvh.any_hit_packet(&mut stack, &packet, |s, open| {
                 (0..n)
                     .filter(|k| {
                         open & (1 << k) != 0
@@ -1006,7 +1009,7 @@ mod tests {
                     .fold(0, |m, k| m | 1 << k)
             });
             for k in 0..n {
-                let single = bvh.any_hit(origin, directions[k], t_max[k], |s, t| {
+                let single = bvh.any_hit(&mut stack, origin, directions[k], t_max[k], |s, t| {
                     shapes[s as usize].intersect_t(origin, directions[k], t)
                 });
                 assert_eq!(occluded & (1 << k) != 0, single, "packet {i}, ray {k}");
@@ -1073,7 +1076,7 @@ mod tests {
         let intersect = |s: u32, t: f32| shapes[s as usize].intersect_t(origin, direction, t);
         assert_eq!(
             bvh.closest_hit(
-                &mut ClosestHitStack::default(),
+                &mut TraversalStack::default(),
                 origin,
                 direction,
                 10.0,
@@ -1081,10 +1084,16 @@ mod tests {
             ),
             Some((0, 1.0))
         );
-        assert!(bvh.any_hit(origin, direction, 10.0, intersect));
+        assert!(bvh.any_hit(
+            &mut TraversalStack::default(),
+            origin,
+            direction,
+            10.0,
+            intersect
+        ));
         let directions = [direction, Vec3A::new(0.0, 0.0, 1.0)];
         let packet = Packet::new(origin, &directions, &[10.0, 10.0]);
-        let occluded = bvh.any_hit_packet(&packet, |_, open| {
+        let occluded = bvh.any_hit_packet(&mut TraversalStack::default(), &packet, |_, open| {
             (0..2)
                 .filter(|k| open & (1 << k) != 0 && intersect(0, 10.0) < f32::INFINITY)
                 .fold(0, |m, k| m | 1 << k)
@@ -1150,7 +1159,7 @@ mod tests {
             order.is_empty()
                 && bvh
                     .closest_hit(
-                        &mut ClosestHitStack::default(),
+                        &mut TraversalStack::default(),
                         Vec3A::ZERO,
                         Vec3A::X,
                         f32::INFINITY,
@@ -1164,7 +1173,7 @@ mod tests {
         })];
         let (bvh, _) = build_bvh(&one).unwrap();
         let hit = bvh.closest_hit(
-            &mut ClosestHitStack::default(),
+            &mut TraversalStack::default(),
             Vec3A::ZERO,
             Vec3A::X,
             f32::INFINITY,

@@ -1,7 +1,7 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
-use crate::flatten::bvh::ClosestHitStack;
+use crate::flatten::bvh::TraversalStack;
 use crate::flatten::{FlatScene, Shape};
 use crate::math::Vec2;
 
@@ -11,7 +11,7 @@ pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch
     hits.t.resize(n, 0.0);
     hits.slot.resize(n, NO_HIT);
     hits.barycentric.resize(n, Vec2::ZERO);
-    let mut stack = ClosestHitStack::default();
+    let mut stack = TraversalStack::default();
     for i in 0..n {
         let (origin, direction) = (rays.origin[i], rays.direction[i]);
         let (slot, t) = scene

@@ -4,13 +4,14 @@
 
 use super::batch::{PathState, ShadowBatch};
 use crate::flatten::FlatScene;
-use crate::flatten::bvh::{PACKET_SIZE, Packet};
+use crate::flatten::bvh::{PACKET_SIZE, Packet, TraversalStack};
 
 /// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
 /// Returns the number of shadow rays traced.
 pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
     let per = shadows.per_path;
     let mut traced = 0;
+    let mut stack = TraversalStack::default();
     for (i, radiance) in paths.radiance.iter_mut().enumerate() {
         let count = shadows.count[i] as usize;
         let chunk = i * per..i * per + count;
@@ -26,7 +27,7 @@ pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut P
                 &direction[rays.clone()],
                 &t_max[rays.clone()],
             );
-            let occluded = scene.occluded_packet(&packet);
+            let occluded = scene.occluded_packet(&mut stack, &packet);
             for (k, c) in contribution[rays].iter().enumerate() {
                 if occluded & (1 << k) == 0 {
                     *radiance += *c;
