@@ -223,8 +223,8 @@ struct EmittingPlane {
     extent: f32,
 }
 
-/// [`LightTable::all_behind`] keeps at most this many planes: beyond, the test costs more
-/// than it saves.
+/// [`LightTable::all_behind`] keeps at most this many planes, so that it stays a few dot
+/// products per hit.
 const MAX_EMITTING_PLANES: usize = 8;
 
 /// How far behind the planes (relative to the coordinates' magnitude) a point must lie for
@@ -311,9 +311,9 @@ impl LightTable {
     }
 
     /// Whether `p` lies behind every light, so that no light sample taken from it could
-    /// shine on it: true only when all lights are one-sided triangles in a few planes (see
-    /// [`emitting_planes`]) and `p` is clearly behind each plane. Lets shading skip the light
-    /// samples of, say, a ceiling above a ceiling light, which would all come out zero.
+    /// shine on it: true only when all lights are one-sided triangles in at most eight
+    /// planes and `p` is clearly behind each one. Lets shading skip the light samples of,
+    /// say, a ceiling above a ceiling light, which would all come out zero.
     #[inline]
     pub fn all_behind(&self, p: Vec3A) -> bool {
         let magnitude = p.abs().max_element();
@@ -465,6 +465,7 @@ impl DeltaLight {
 mod tests {
     use super::*;
     use crate::flatten::triangles::TriangleGeom;
+    use crate::math::rng::{path_key, uniform};
 
     /// One light sample seen from `p`: its point, direction, distance and weight.
     fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
@@ -520,26 +521,20 @@ mod tests {
         let table = LightTable::new(quad.clone(), vec![]);
         assert_eq!(table.emitting_planes.len(), 1);
         let mut samples = LightSamples::default();
-        let mut rng = 1u64;
-        let mut uniform = || {
-            rng = rng
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (rng >> 40) as f32 / (1u64 << 24) as f32
-        };
         let mut behind = 0;
-        for _ in 0..2000 {
+        for i in 0..2000 {
+            let u = |d: u32| uniform(path_key(5, i, 0), 0, d);
             // Points around the light's plane, down to a hair's breadth from it.
-            let height = 4.99 + (uniform() - 0.5) * 10f32.powf(-4.0 * uniform());
-            let p = Vec3A::new(20.0 * uniform() - 5.0, 20.0 * uniform() - 10.0, height);
+            let height = 4.99 + (u(0) - 0.5) * 10f32.powf(-4.0 * u(1));
+            let p = Vec3A::new(20.0 * u(2) - 5.0, 20.0 * u(3) - 10.0, height);
             if !table.all_behind(p) {
                 assert!(height < 4.99 + 1e-2, "{p} is clearly behind the light");
                 continue;
             }
             behind += 1;
             assert!(height > 4.99, "{p} is in front of the light");
-            let uniforms: Vec<_> = (0..LIGHT_LANES)
-                .map(|_| (uniform(), Vec2::new(uniform(), uniform())))
+            let uniforms: Vec<_> = (0..LIGHT_LANES as u32)
+                .map(|k| (u(10 + 3 * k), Vec2::new(u(11 + 3 * k), u(12 + 3 * k))))
                 .collect();
             table.sample(p, &uniforms, &mut samples);
             assert!(
