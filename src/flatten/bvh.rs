@@ -650,23 +650,19 @@ impl Bvh4 {
         let (lo, hi) = (safe_inverse3(d_max), safe_inverse3(d_min));
         let mut axes = [(0usize, 0usize, Vec4::ZERO, Vec4::ZERO, Vec4::ZERO); 3];
         let mut constrained = 0;
+        // Branch-free (the signs vary from packet to packet): every axis is written at the
+        // end of the list, which grows only over the axes that keep one sign.
         for axis in 0..3 {
-            let near = if positive & (1 << axis) != 0 {
-                axis
-            } else if negative & (1 << axis) != 0 {
-                axis + 3
-            } else {
-                continue;
-            };
-            let far = if near == axis { axis + 3 } else { axis };
+            let is_positive = (positive >> axis & 1) as usize;
+            let keeps_sign = ((positive | negative) >> axis & 1) as usize;
             axes[constrained] = (
-                near,
-                far,
+                axis + 3 * (1 - is_positive),
+                axis + 3 * is_positive,
                 Vec4::splat(lo[axis]),
                 Vec4::splat(hi[axis]),
                 Vec4::splat(origin[axis]),
             );
-            constrained += 1;
+            constrained += keeps_sign;
         }
         if constrained < 2 {
             let mut occluded = 0;
