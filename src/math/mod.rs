@@ -54,12 +54,12 @@ fn step_toward(x: f32, sign: f32) -> f32 {
     // Away from zero the bits grow by one, toward zero they shrink by one; from either
     // zero the step lands on the smallest subnormal of the direction's sign.
     let grows = (bits >> 31 == 0) == up;
+    // +1 or -1 (wrapping) by arithmetic: the compiler made a branch of a select here.
+    let step = (2 * u32::from(grows)).wrapping_sub(1);
     let stepped = if bits << 1 == 0 {
         if up { 1 } else { 0x8000_0001 }
-    } else if grows {
-        bits.wrapping_add(1)
     } else {
-        bits.wrapping_sub(1)
+        bits.wrapping_add(step)
     };
     if (sign == 0.0) | !x.is_finite() {
         x
