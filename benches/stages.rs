@@ -1,7 +1,7 @@
-//! Stage-level benchmarks: each wavefront stage, on one thread as the renderer runs it, on a fixed,
-//! seeded batch of 65,536 paths, in the seed room and in a heavy scene (the room plus a procedural
-//! mesh of over a million triangles), reported as rays (or paths) per second; plus the BVH build of
-//! the heavy scene. Names are `stage/scene`.
+//! Stage-level benchmarks: each wavefront stage, on one thread as the renderer runs it, on a
+//! fixed, seeded batch of 65,536 paths, in the seed room and in a heavy scene (the room plus a
+//! procedural mesh of over a million triangles), reported as rays (or paths) per second; plus
+//! the BVH build of the heavy scene. Names are `stage/scene`.
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;

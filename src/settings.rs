@@ -30,8 +30,8 @@ pub struct RenderSettings {
     /// Seed of every random number.
     pub seed: u64,
     /// Paths traced together through the wavefront stages, one batch per thread at a time
-    /// (fewer when many shadow rays per hit would make the shadow buffers large). Only speed and memory depend on it, never
-    /// the image.
+    /// (fewer when many shadow rays per hit would make the shadow buffers large). Only speed
+    /// and memory depend on it, never the image.
     pub batch_size: u32,
     /// Bounces before Russian roulette may end a path: 1 lets it play from the second hit
     /// on, as pbrt-v4 and Cycles do (the seed played it from the first).

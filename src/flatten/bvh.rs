@@ -128,8 +128,8 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
 }
 
 /// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
-/// the steps of its `build_bvh2` without its leaf collapse (which [`BinaryTree::collapse`] replaces)
-/// and without the validation that build runs with debug assertions on: that one panics on
+/// the steps of its `build_bvh2` without its leaf collapse (which [`BinaryTree::collapse`]
+/// replaces) and without the validation that build runs with debug assertions on: that one panics on
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
 fn build_bvh2(shapes: &[Shape], params: BvhBuildParams) -> Bvh2 {

@@ -316,12 +316,14 @@ impl LightTable {
     /// say, a ceiling above a ceiling light, which would all come out zero.
     #[inline]
     pub fn all_behind(&self, p: Vec3A) -> bool {
+        if self.emitting_planes.is_empty() {
+            return false;
+        }
         let magnitude = p.abs().max_element();
-        !self.emitting_planes.is_empty()
-            && self.emitting_planes.iter().all(|plane| {
-                let margin = BEHIND_MARGIN * (plane.extent + magnitude);
-                plane.normal.dot(p) - plane.offset < -margin
-            })
+        self.emitting_planes.iter().all(|plane| {
+            let margin = BEHIND_MARGIN * (plane.extent + magnitude);
+            plane.normal.dot(p) - plane.offset < -margin
+        })
     }
 
     /// Whether the scene has any light to sample.
