@@ -1,7 +1,7 @@
 //! Lambertian (ideal diffuse) reflection: f = albedo / pi on the side of `wo`.
 
 use crate::math::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
-use crate::math::{Rgb, Vec2, Vec3A};
+use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use std::f32::consts::FRAC_1_PI;
 
 use super::BsdfSample;
@@ -33,22 +33,15 @@ pub fn pdf(wo: Vec3A, wi: Vec3A) -> f32 {
     eval_and_pdf(wo.z, wi.z).1
 }
 
-/// [`eval`] and [`pdf`] of every lane of `wi_z` (the directions' z components), in one pass.
+/// [`eval`] and [`pdf`] of four directions, given by their z components (one `Vec4` lane
+/// each): f by channel, and the densities. The same arithmetic as the scalar forms.
 #[inline]
-pub fn eval_and_pdf_lanes<const L: usize>(
-    albedo: Rgb,
-    wo_z: f32,
-    wi_z: &[f32; L],
-    f: &mut [Rgb; L],
-    pdf: &mut [f32; L],
-) {
-    let mut f_over_albedo = [0.0; L];
-    for k in 0..L {
-        (f_over_albedo[k], pdf[k]) = eval_and_pdf(wo_z, wi_z[k]);
-    }
-    for (f, scale) in f.iter_mut().zip(f_over_albedo) {
-        *f = albedo * scale;
-    }
+pub fn eval_and_pdf_lanes(albedo: Rgb, wo_z: f32, wi_z: Vec4) -> ([Vec4; 3], Vec4) {
+    let same_side = (Vec4::splat(wo_z) * wi_z).cmpgt(Vec4::ZERO);
+    let f_over_albedo = Vec4::select(same_side, Vec4::splat(FRAC_1_PI), Vec4::ZERO);
+    let pdf = wi_z.abs().max(Vec4::ZERO) * Vec4::splat(FRAC_1_PI);
+    let f = albedo.to_array().map(|a| Vec4::splat(a) * f_over_albedo);
+    (f, Vec4::select(same_side, pdf, Vec4::ZERO))
 }
 
 /// Cosine-weighted sample on the side of `wo`; the weight f cos / pdf is exactly the albedo.

@@ -4,7 +4,7 @@
 
 use super::Shape;
 use crate::math::sampling::{sample_discrete, sample_triangle, sample_uniform_sphere};
-use crate::math::{Rgb, Vec2, Vec3A, luminance};
+use crate::math::{BVec4A, Mat4, Rgb, Vec2, Vec3A, Vec4, luminance};
 use std::f32::consts::PI;
 
 /// One emitting primitive.
@@ -125,66 +125,70 @@ impl DeltaLight {
     }
 }
 
-/// Light samples per shading point are taken in groups of this many lanes.
-pub const LIGHT_LANES: usize = 16;
+/// Light samples per shading point are taken in groups of this many lanes: one `Vec4`.
+pub const LIGHT_LANES: usize = 4;
 
-/// Up to [`LIGHT_LANES`] light samples seen from one shading point, as structure of arrays:
-/// choosing the lights and the points is scalar, but the geometry of all lanes (direction,
-/// distance, density) is one pass of independent lanes that compiles to SIMD.
-#[derive(Clone, Debug)]
+/// Four light samples seen from one shading point, lane `k` of every vector being sample
+/// `k`, so that one SIMD instruction serves all four. Kept in registers from the choice of
+/// the points to the shadow rays: scalar stores that vector loads read back stall.
+#[derive(Clone, Copy, Debug)]
 pub struct LightSamples {
-    /// Lanes in use.
-    pub len: usize,
     /// Unit direction from the shading point toward the light, by axis.
-    pub wi: [[f32; LIGHT_LANES]; 3],
+    pub wi: [Vec4; 3],
     /// Distance to the light point; infinite for directional lights.
-    pub distance: [f32; LIGHT_LANES],
-    /// Radiance of an area light, or the weight of a punctual light.
-    pub radiance: [Rgb; LIGHT_LANES],
+    pub distance: Vec4,
+    /// Radiance of an area light, or the weight of a punctual light, by channel.
+    pub radiance: [Vec4; 3],
     /// Incident radiance over the sample's density, per unit of `|cos|` at the receiver, is
     /// `radiance * scale`; zero when the light does not shine toward the point.
-    pub scale: [f32; LIGHT_LANES],
+    pub scale: Vec4,
     /// Density of `wi` per solid angle (choice of the light included), for multiple
     /// importance sampling; infinite for punctual lights, which BSDF sampling never finds.
-    pub pdf_solid_angle: [f32; LIGHT_LANES],
+    pub pdf_solid_angle: Vec4,
     /// Index of the area light sampled (into [`LightTable::lights`]), or [`NOT_AREA_LIGHT`].
     pub area_light: [u32; LIGHT_LANES],
-    /// Barycentrics of the point on a triangle light (for its emission texture).
-    pub barycentric: [Vec2; LIGHT_LANES],
-    /// Inputs of the geometry pass: the point on the light, its normal, its area density,
-    /// and 1 where it emits on both sides, else 0 (numbers, not `bool`s: those keep the pass
-    /// from vectorising).
-    point: [[f32; LIGHT_LANES]; 3],
-    normal: [[f32; LIGHT_LANES]; 3],
-    pdf_area: [f32; LIGHT_LANES],
-    two_sided: [f32; LIGHT_LANES],
-}
-
-impl Default for LightSamples {
-    fn default() -> Self {
-        const ZEROS: [f32; LIGHT_LANES] = [0.0; LIGHT_LANES];
-        LightSamples {
-            len: 0,
-            wi: [ZEROS; 3],
-            distance: ZEROS,
-            radiance: [Rgb::ZERO; LIGHT_LANES],
-            scale: ZEROS,
-            pdf_solid_angle: ZEROS,
-            area_light: [NOT_AREA_LIGHT; LIGHT_LANES],
-            barycentric: [Vec2::ZERO; LIGHT_LANES],
-            point: [ZEROS; 3],
-            normal: [ZEROS; 3],
-            pdf_area: ZEROS,
-            two_sided: ZEROS,
-        }
-    }
+    /// Barycentrics `(b1, b2)` of the point on a triangle light (for its emission texture).
+    pub barycentric: [Vec4; 2],
 }
 
 impl LightSamples {
     /// Direction of lane `k`.
-    #[inline(always)]
+    #[inline]
     pub fn wi(&self, k: usize) -> Vec3A {
         Vec3A::new(self.wi[0][k], self.wi[1][k], self.wi[2][k])
+    }
+
+    /// Radiance of lane `k`.
+    #[inline]
+    pub fn radiance(&self, k: usize) -> Rgb {
+        Rgb::new(
+            self.radiance[0][k],
+            self.radiance[1][k],
+            self.radiance[2][k],
+        )
+    }
+
+    /// These samples with the lanes set in `mask` taken from `other`.
+    #[inline]
+    fn merged(self, other: LightSamples, mask: BVec4A) -> LightSamples {
+        let pick = |a: Vec4, b: Vec4| Vec4::select(mask, b, a);
+        let pick3 = |a: [Vec4; 3], b: [Vec4; 3]| [0, 1, 2].map(|i| pick(a[i], b[i]));
+        let mask = mask.bitmask();
+        LightSamples {
+            wi: pick3(self.wi, other.wi),
+            distance: pick(self.distance, other.distance),
+            radiance: pick3(self.radiance, other.radiance),
+            scale: pick(self.scale, other.scale),
+            pdf_solid_angle: pick(self.pdf_solid_angle, other.pdf_solid_angle),
+            area_light: std::array::from_fn(|k| {
+                if mask >> k & 1 != 0 {
+                    other.area_light[k]
+                } else {
+                    self.area_light[k]
+                }
+            }),
+            barycentric: self.barycentric,
+        }
     }
 }
 
@@ -209,6 +213,9 @@ pub struct LightTable {
     pub delta_lights: Vec<DeltaLight>,
     /// Running sum of the lights' power, area lights then punctual ones; the last entry is the total.
     pub power_cdf: Vec<f32>,
+    /// Per area light, what its samples read, in two vectors: `[normal, pdf_area]` and
+    /// `[radiance, 1 if two-sided else 0]`.
+    records: Vec<[Vec4; 2]>,
     /// When every light is a one-sided triangle and they lie in a few planes: those planes.
     /// A point behind all of them gets no light (see [`LightTable::all_behind`]).
     emitting_planes: Vec<EmittingPlane>,
@@ -302,7 +309,15 @@ impl LightTable {
         for (l, &p) in delta_lights.iter_mut().zip(&powers[lights.len()..]) {
             l.select_probability = probability(p);
         }
+        let records = lights
+            .iter()
+            .map(|l| {
+                let two_sided = if l.two_sided { 1.0 } else { 0.0 };
+                [l.normal.extend(l.pdf_area), l.radiance.extend(two_sided)]
+            })
+            .collect();
         LightTable {
+            records,
             emitting_planes: emitting_planes(&lights, &delta_lights),
             lights,
             delta_lights,
@@ -332,90 +347,126 @@ impl LightTable {
         self.power_cdf.is_empty()
     }
 
-    /// Fills `samples` with `uniforms.len()` (at most [`LIGHT_LANES`]) light samples as seen
-    /// from `p`: lane `k` chooses a light with `uniforms[k].0` and a point on it with
-    /// `uniforms[k].1` (area lights: uniform by area).
-    #[inline]
-    pub fn sample(&self, p: Vec3A, uniforms: &[(f32, Vec2)], samples: &mut LightSamples) {
-        debug_assert!(uniforms.len() <= LIGHT_LANES);
-        samples.len = uniforms.len();
+    /// Four light samples as seen from `p`: lane `k` chooses a light with `uniforms[k].0`
+    /// and a point on it with `uniforms[k].1` (area lights: uniform by area).
+    #[inline(always)]
+    pub fn sample(&self, p: Vec3A, uniforms: &[(f32, Vec2); LIGHT_LANES]) -> LightSamples {
+        let lane_vector = |f: fn(&(f32, Vec2)) -> f32| Vec4::from_array(uniforms.each_ref().map(f));
+        let u = [lane_vector(|u| u.1.x), lane_vector(|u| u.1.y)];
+        let barycentric = sample_triangle(u);
+        let (b1, b2) = (barycentric[0].to_array(), barycentric[1].to_array());
+        let mut index = [0; LIGHT_LANES];
         let mut punctual = 0u32;
-        for (k, &(u_pick, u)) in uniforms.iter().enumerate() {
-            let index = sample_discrete(&self.power_cdf, u_pick);
-            let Some(light) = self.lights.get(index) else {
-                punctual |= 1 << k; // done after the geometry pass, which overwrites every lane
-                continue;
+        // Each lane's point and its light's `[normal, pdf_area]` and `[radiance, two_sided]`
+        // records. A punctual lane computes harmless garbage below and is overwritten after.
+        let mut lane = |k: usize| {
+            index[k] = sample_discrete(&self.power_cdf, uniforms[k].0);
+            let Some(light) = self.lights.get(index[k]) else {
+                punctual |= 1 << k;
+                return [Vec4::ZERO; 3];
             };
-            let (point, normal, barycentric) = match light.shape {
-                Shape::Triangle(t) => {
-                    let b = sample_triangle(u);
-                    (t.point(b), light.normal, b)
-                }
+            let [normal_pdf, radiance_sided] = self.records[index[k]];
+            match light.shape {
+                Shape::Triangle(t) => [
+                    t.point(Vec2::new(b1[k], b2[k])).extend(0.0),
+                    normal_pdf,
+                    radiance_sided,
+                ],
                 Shape::Sphere(s) => {
-                    let n = sample_uniform_sphere(u);
-                    (s.center + s.radius * n, n, Vec2::ZERO)
+                    let n = sample_uniform_sphere(uniforms[k].1);
+                    [
+                        (s.center + s.radius * n).extend(0.0),
+                        n.extend(normal_pdf.w),
+                        radiance_sided,
+                    ]
                 }
-            };
-            for axis in 0..3 {
-                samples.point[axis][k] = point[axis];
-                samples.normal[axis][k] = normal[axis];
             }
-            samples.pdf_area[k] = light.pdf_area;
-            samples.two_sided[k] = if light.two_sided { 1.0 } else { 0.0 };
-            samples.radiance[k] = light.radiance;
-            samples.area_light[k] = index as u32;
-            samples.barycentric[k] = barycentric;
-        }
-        area_light_geometry(p, samples);
-        while punctual != 0 {
-            let k = punctual.trailing_zeros() as usize;
-            punctual &= punctual - 1;
-            let index = sample_discrete(&self.power_cdf, uniforms[k].0);
-            let s = self.delta_lights[index - self.lights.len()].sample_from(p);
-            for axis in 0..3 {
-                samples.wi[axis][k] = s.wi[axis];
-            }
-            samples.distance[k] = s.distance;
-            samples.radiance[k] = s.weight;
-            samples.scale[k] = 1.0;
-            samples.pdf_solid_angle[k] = f32::INFINITY;
-            samples.area_light[k] = NOT_AREA_LIGHT;
-        }
-    }
-}
-
-/// The geometry pass of [`LightTable::sample`] over all lanes, area lights or not (unused
-/// lanes compute harmless garbage): no branches, no calls, so that it vectorises.
-#[inline(always)]
-fn area_light_geometry(p: Vec3A, s: &mut LightSamples) {
-    let [point_x, point_y, point_z] = &s.point;
-    let [normal_x, normal_y, normal_z] = &s.normal;
-    let [wi_x, wi_y, wi_z] = &mut s.wi;
-    for k in 0..LIGHT_LANES {
-        let (dx, dy, dz) = (point_x[k] - p.x, point_y[k] - p.y, point_z[k] - p.z);
+        };
+        // Called lane by lane, not through `array::from_fn`, which the compiler left as a
+        // call per lane.
+        let lanes = [lane(0), lane(1), lane(2), lane(3)];
+        // Lanes to vectors: row `axis` of the transposed 4 x 4 block is that axis over the lanes.
+        let by_axis = |field: usize| {
+            let [a, b, c, d] = lanes.map(|l| l[field]);
+            let m = Mat4::from_cols(a, b, c, d).transpose();
+            [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
+        };
+        let [point_x, point_y, point_z, _] = by_axis(0);
+        let [normal_x, normal_y, normal_z, pdf_area] = by_axis(1);
+        let [red, green, blue, two_sided] = by_axis(2);
+        let (dx, dy, dz) = (
+            point_x - Vec4::splat(p.x),
+            point_y - Vec4::splat(p.y),
+            point_z - Vec4::splat(p.z),
+        );
         let distance_squared = dx * dx + dy * dy + dz * dz;
         let distance = distance_squared.sqrt();
-        let inverse_distance = 1.0 / distance;
-        (wi_x[k], wi_y[k], wi_z[k]) = (
+        let inverse_distance = Vec4::ONE / distance;
+        let wi = [
             dx * inverse_distance,
             dy * inverse_distance,
             dz * inverse_distance,
-        );
-        let cos_light = -(normal_x[k] * wi_x[k] + normal_y[k] * wi_y[k] + normal_z[k] * wi_z[k]);
+        ];
+        let cos_light = -(normal_x * wi[0] + normal_y * wi[1] + normal_z * wi[2]);
         // A one-sided light shines toward its normal; a two-sided one both ways.
-        let facing = if s.two_sided[k] > 0.0 {
-            cos_light.abs()
-        } else {
-            cos_light
+        let facing = Vec4::select(two_sided.cmpgt(Vec4::ZERO), cos_light.abs(), cos_light);
+        let pdf_solid_angle = pdf_area * distance_squared / cos_light.abs();
+        let shines = facing.cmpgt(Vec4::ZERO) & distance_squared.cmpgt(Vec4::ZERO);
+        let samples = LightSamples {
+            wi,
+            distance,
+            radiance: [red, green, blue],
+            scale: Vec4::select(shines, Vec4::ONE / pdf_solid_angle, Vec4::ZERO),
+            pdf_solid_angle,
+            area_light: index.map(|i| {
+                if i < self.lights.len() {
+                    i as u32
+                } else {
+                    NOT_AREA_LIGHT
+                }
+            }),
+            barycentric,
         };
-        let pdf_solid_angle = s.pdf_area[k] * distance_squared / cos_light.abs();
-        s.distance[k] = distance;
-        s.pdf_solid_angle[k] = pdf_solid_angle;
-        s.scale[k] = if facing > 0.0 && distance_squared > 0.0 {
-            1.0 / pdf_solid_angle
-        } else {
-            0.0
-        };
+        if punctual == 0 {
+            return samples;
+        }
+        let mask = BVec4A::from_array(std::array::from_fn(|k| punctual >> k & 1 != 0));
+        samples.merged(self.punctual_samples(p, punctual, &index), mask)
+    }
+
+    /// The samples of the punctual lights that the lanes set in `lanes` chose (`index`,
+    /// counted after the area lights); other lanes are zero. Apart, and off the common path,
+    /// so that the samples of area lights never leave registers.
+    #[cold]
+    #[inline(never)]
+    fn punctual_samples(
+        &self,
+        p: Vec3A,
+        mut lanes: u32,
+        index: &[usize; LIGHT_LANES],
+    ) -> LightSamples {
+        let mut wi = [[0.0; LIGHT_LANES]; 3];
+        let mut radiance = [[0.0; LIGHT_LANES]; 3];
+        let mut distance = [0.0; LIGHT_LANES];
+        while lanes != 0 {
+            let k = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            let s = self.delta_lights[index[k] - self.lights.len()].sample_from(p);
+            for axis in 0..3 {
+                wi[axis][k] = s.wi[axis];
+                radiance[axis][k] = s.weight[axis];
+            }
+            distance[k] = s.distance;
+        }
+        LightSamples {
+            wi: wi.map(Vec4::from_array),
+            distance: Vec4::from_array(distance),
+            radiance: radiance.map(Vec4::from_array),
+            scale: Vec4::ONE,
+            pdf_solid_angle: Vec4::INFINITY,
+            area_light: [NOT_AREA_LIGHT; LIGHT_LANES],
+            barycentric: [Vec4::ZERO; 2],
+        }
     }
 }
 
@@ -466,19 +517,19 @@ impl DeltaLight {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::flatten::spheres::SphereGeom;
     use crate::flatten::triangles::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
 
     /// One light sample seen from `p`: its point, direction, distance and weight.
     fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
-        let mut s = LightSamples::default();
-        table.sample(p, &[(u_pick, u)], &mut s);
+        let s = table.sample(p, &[(u_pick, u); LIGHT_LANES]);
         let wi = s.wi(0);
         (
             p + s.distance[0] * wi,
             wi,
             s.distance[0],
-            s.radiance[0] * s.scale[0],
+            s.radiance(0) * s.scale[0],
         )
     }
 
@@ -522,7 +573,6 @@ mod tests {
         let quad = vec![light([a, b, c]), light([a, c, d])];
         let table = LightTable::new(quad.clone(), vec![]);
         assert_eq!(table.emitting_planes.len(), 1);
-        let mut samples = LightSamples::default();
         let mut behind = 0;
         for i in 0..2000 {
             let u = |d: u32| uniform(path_key(5, i, 0), 0, d);
@@ -535,15 +585,14 @@ mod tests {
             }
             behind += 1;
             assert!(height > 4.99, "{p} is in front of the light");
-            let uniforms: Vec<_> = (0..LIGHT_LANES as u32)
-                .map(|k| (u(10 + 3 * k), Vec2::new(u(11 + 3 * k), u(12 + 3 * k))))
-                .collect();
-            table.sample(p, &uniforms, &mut samples);
-            assert!(
-                samples.scale.iter().all(|&s| s == 0.0),
-                "{p}: {:?}",
-                samples.scale
-            );
+            for group in 0..4 {
+                let uniforms = std::array::from_fn(|k| {
+                    let d = 10 + 3 * (4 * group + k as u32);
+                    (u(d), Vec2::new(u(d + 1), u(d + 2)))
+                });
+                let samples = table.sample(p, &uniforms);
+                assert_eq!(samples.scale, Vec4::ZERO, "{p}");
+            }
         }
         assert!(behind > 500, "{behind}");
         // Lights the test cannot reason about: none is ever skipped.
@@ -553,6 +602,50 @@ mod tests {
         assert!(table.all_behind(above));
         assert!(!LightTable::new(vec![two_sided], vec![]).all_behind(above));
         assert!(!LightTable::new(quad, vec![sun]).all_behind(above));
+    }
+
+    /// Lanes of one group that choose different kinds of light (two triangles, a sphere, a
+    /// point light) get what each would get alone.
+    #[test]
+    fn lanes_of_mixed_lights_match_single_samples() {
+        let area = |shape: Shape| AreaLight::new(shape, Rgb::new(1.0, 2.0, 3.0), false);
+        let tri = |z: f32| {
+            Shape::Triangle(TriangleGeom::new(
+                Vec3A::new(-1.0, -1.0, z),
+                Vec3A::new(1.0, -1.0, z),
+                Vec3A::new(0.0, 1.0, z),
+            ))
+        };
+        let ball = Shape::Sphere(SphereGeom {
+            center: Vec3A::new(3.0, 0.0, 2.0),
+            radius: 0.5,
+        });
+        let point = DeltaLight::point(Vec3A::new(-2.0, 1.0, 3.0), Rgb::new(5.0, 4.0, 3.0));
+        let mut flipped = area(tri(3.0));
+        flipped.two_sided = true;
+        let table = LightTable::new(vec![area(tri(2.0)), flipped, area(ball)], vec![point]);
+        let p = Vec3A::new(0.2, -0.1, 0.0);
+        for i in 0..200 {
+            let u = |d: u32| uniform(path_key(9, i, 0), 0, d);
+            let uniforms: [(f32, Vec2); LIGHT_LANES] = std::array::from_fn(|k| {
+                (
+                    u(3 * k as u32),
+                    Vec2::new(u(3 * k as u32 + 1), u(3 * k as u32 + 2)),
+                )
+            });
+            let group = table.sample(p, &uniforms);
+            for (k, &one) in uniforms.iter().enumerate() {
+                let alone = table.sample(p, &[one; LIGHT_LANES]);
+                let lane = |s: &LightSamples| {
+                    let mut values = s.wi.map(|v| v[k]).to_vec();
+                    values.extend(s.radiance.map(|v| v[k]));
+                    values.extend([s.distance[k], s.scale[k], s.pdf_solid_angle[k]]);
+                    values.into_iter().map(f32::to_bits).collect::<Vec<_>>()
+                };
+                assert_eq!(lane(&group), lane(&alone), "case {i}, lane {k}");
+                assert_eq!(group.area_light[k], alone.area_light[0]);
+            }
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@ pub mod frame;
 pub mod rng;
 pub mod sampling;
 
-pub use glam::{Affine3A, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
+pub use glam::{Affine3A, BVec4A, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
 
 /// Linear RGB radiance, throughput or reflectance (Rec.709 primaries, no gamma).
 pub type Rgb = Vec3;

@@ -3,12 +3,12 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::surface;
-use crate::flatten::lights::{LIGHT_LANES, LightSamples};
+use crate::flatten::lights::LIGHT_LANES;
 use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
-use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
+use crate::math::{Mat4, Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin};
 use crate::settings::MAX_SHADOW_RAYS;
 
 /// Russian roulette never keeps a path with probability above this, so that paths through
@@ -53,7 +53,6 @@ pub fn shade_hits(
     for (j, salt) in salts.iter_mut().enumerate() {
         *salt = rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j as u32);
     }
-    let mut light_samples = LightSamples::default();
     let mut capped = 0;
     for i in 0..n {
         let hit = Hit {
@@ -75,7 +74,6 @@ pub fn shade_hits(
         let chunk = i * per..(i + 1) * per;
         let next_event = NextEvent {
             salts,
-            samples: &mut light_samples,
             shadow: ShadowView {
                 count: &mut shadows.count[i],
                 origin: &mut shadows.origin[i],
@@ -117,10 +115,9 @@ struct PathView<'a> {
 }
 
 /// What next-event estimation at one hit works with: the random-number salts of the shadow
-/// rays, scratch space for the light samples, and the path's chunk of the shadow batch.
+/// rays and the path's chunk of the shadow batch.
 struct NextEvent<'a> {
     salts: &'a [u64],
-    samples: &'a mut LightSamples,
     shadow: ShadowView<'a>,
 }
 
@@ -142,11 +139,7 @@ fn shade_one(
     path: &mut PathView,
     next_event: NextEvent,
 ) -> bool {
-    let NextEvent {
-        salts,
-        samples,
-        shadow,
-    } = next_event;
+    let NextEvent { salts, shadow } = next_event;
     *shadow.count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
@@ -191,8 +184,11 @@ fn shade_one(
                 // solid angle at the previous vertex (the ray's origin, `t` away).
                 let cos_light = ng.dot(wo).abs();
                 let light_pdf_sa = light.pdf_area * hit.t * hit.t / cos_light;
-                let weight =
-                    power_heuristic(*path.bsdf_pdf, params.shadow_rays as f32 * light_pdf_sa);
+                let weight = power_heuristic(
+                    Vec4::splat(*path.bsdf_pdf),
+                    Vec4::splat(params.shadow_rays as f32 * light_pdf_sa),
+                )
+                .x;
                 *path.radiance += *path.throughput * emitted * weight;
             }
         }
@@ -221,72 +217,61 @@ fn shade_one(
         } else {
             salts.len()
         };
-        let mut uniforms = [(0.0, Vec2::ZERO); LIGHT_LANES];
-        for chunk_salts in salts[..samples_needed].chunks(LIGHT_LANES) {
-            let lanes = chunk_salts.len();
-            for (u, &salt) in uniforms.iter_mut().zip(chunk_salts) {
-                *u = rng::uniform3_salted(key, salt);
-            }
+        // The shading frame and the side the shadow rays leave from, one vector per
+        // coordinate, for the lanes.
+        let [s, t, n, side] =
+            [frame.s, frame.t, frame.n, front_normal].map(|v| v.to_array().map(Vec4::splat));
+        let throughput = path.throughput.to_array().map(Vec4::splat);
+        let mut count = 0;
+        for group in salts[..samples_needed].chunks(LIGHT_LANES) {
+            let lanes = group.len();
+            // Lanes past the group repeat its last sample; they are never kept.
+            let uniform = |k: usize| rng::uniform3_salted(key, group[k.min(lanes - 1)]);
+            let uniforms = [uniform(0), uniform(1), uniform(2), uniform(3)];
             // Sampled from the offset origin, so the direction and length serve the shadow
             // ray as they are (the offset is a rounding-error bound: it moves the estimate
             // by nothing measurable).
-            scene.lights.sample(origin, &uniforms[..lanes], samples);
-            // The receiver's side of every lane in one vectorised pass: the direction in the
-            // shading frame, and whether the light shines here from the side the shadow rays
-            // leave from.
-            let mut wi_local = [[0.0; LIGHT_LANES]; 3];
-            let mut usable = [0.0f32; LIGHT_LANES];
-            // Plain numbers out of the vectors, so that the lane loop below vectorises.
-            let [s, t, n, side] = [frame.s, frame.t, frame.n, front_normal].map(|v| v.to_array());
-            let [wi_x, wi_y, wi_z] = &samples.wi;
-            for k in 0..LIGHT_LANES {
-                let dot = |v: [f32; 3]| wi_x[k] * v[0] + wi_y[k] * v[1] + wi_z[k] * v[2];
-                (wi_local[0][k], wi_local[1][k], wi_local[2][k]) = (dot(s), dot(t), dot(n));
-                // `&`, not `&&`: no branch, so that the loop vectorises.
-                let on_front = dot(side) > 0.0;
-                usable[k] = if on_front & (samples.scale[k] > 0.0) {
-                    1.0
-                } else {
-                    0.0
-                };
-            }
-            let mut f = [Rgb::ZERO; LIGHT_LANES];
-            let mut bsdf_pdf = [0.0; LIGHT_LANES];
-            bsdf.eval_and_pdf_lanes(wo_local, &wi_local, &mut f, &mut bsdf_pdf);
+            let samples = scene.lights.sample(origin, &uniforms);
+            let samples = surface::texture_light_samples(scene, samples);
+            let [wi_x, wi_y, wi_z] = samples.wi;
+            let dot = |v: [Vec4; 3]| wi_x * v[0] + wi_y * v[1] + wi_z * v[2];
+            let wi_local = [dot(s), dot(t), dot(n)];
+            // Whether the light shines here from the side the shadow rays leave from.
+            let usable = dot(side).cmpgt(Vec4::ZERO) & samples.scale.cmpgt(Vec4::ZERO);
+            let (f, bsdf_pdf) = bsdf.eval_and_pdf_lanes(wo_local, &wi_local);
             // What multiplies f and the radiance: the light's weight, the cosine, the 1/N of
             // the N samples, and the MIS weight of this light sample against the BSDF sample
             // that could have found the point (punctual lights: weight 1).
-            let mut factor = [0.0; LIGHT_LANES];
-            for k in 0..LIGHT_LANES {
-                let mis_weight = if params.mis {
-                    power_heuristic(
-                        params.shadow_rays as f32 * samples.pdf_solid_angle[k],
-                        bsdf_pdf[k],
-                    )
-                } else {
-                    1.0
-                };
-                factor[k] = samples.scale[k] * wi_local[2][k].abs() * inv_n * mis_weight;
-            }
-            for k in 0..lanes {
-                if usable[k] == 0.0 {
-                    continue;
-                }
-                let contribution = *path.throughput
-                    * f[k]
-                    * surface::light_sample_radiance(scene, samples, k)
-                    * factor[k];
-                if contribution == Rgb::ZERO {
-                    continue; // nothing to add: no ray to trace
-                }
-                let j = *shadow.count as usize;
-                *shadow.count += 1;
-                // Directional lights are infinitely far: nothing may block the way out.
-                shadow.direction[j] = samples.wi(k);
-                shadow.t_max[j] = samples.distance[k] * (1.0 - SHADOW_RAY_SHORTENING);
-                shadow.contribution[j] = contribution;
+            let mis_weight = if params.mis {
+                power_heuristic(
+                    Vec4::splat(params.shadow_rays as f32) * samples.pdf_solid_angle,
+                    bsdf_pdf,
+                )
+            } else {
+                Vec4::ONE
+            };
+            let factor = samples.scale * wi_local[2].abs() * Vec4::splat(inv_n) * mis_weight;
+            let channel = |c: usize| throughput[c] * f[c] * samples.radiance[c] * factor;
+            let contribution = [channel(0), channel(1), channel(2)];
+            let lit = contribution[0].cmpne(Vec4::ZERO)
+                | contribution[1].cmpne(Vec4::ZERO)
+                | contribution[2].cmpne(Vec4::ZERO);
+            // A shadow ray only where there is something to add.
+            let keep = (usable & lit).bitmask() & ((1 << lanes) - 1);
+            // Back to one vector per lane, and written without branches: every lane is
+            // stored at the next free entry, which only a kept lane takes.
+            let columns = |m: Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
+            let rays = columns(Mat4::from_cols(wi_x, wi_y, wi_z, samples.distance).transpose());
+            let [r, g, b] = contribution;
+            let colours = columns(Mat4::from_cols(r, g, b, Vec4::ZERO).transpose());
+            for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
+                shadow.direction[count] = Vec3A::from_vec4(ray);
+                shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
+                shadow.contribution[count] = colour.truncate();
+                count += (keep >> k & 1) as usize;
             }
         }
+        *shadow.count = count as u32;
     }
 
     // --- BSDF sampling for the next ray.
@@ -334,12 +319,12 @@ fn shade_one(
     false
 }
 
-/// Veach's power heuristic (beta = 2) for a sample from the strategy of density `pdf`
-/// against one of density `other_pdf`, each already multiplied by its sample count.
-/// Branch-free, so that lane loops vectorise it.
+/// Veach's power heuristic (beta = 2), lane by lane, for a sample from the strategy of
+/// density `pdf` against one of density `other_pdf`, each already multiplied by its sample
+/// count.
 #[inline(always)]
-fn power_heuristic(pdf: f32, other_pdf: f32) -> f32 {
+fn power_heuristic(pdf: Vec4, other_pdf: Vec4) -> Vec4 {
     let (a, b) = (pdf * pdf, other_pdf * other_pdf);
-    let weight = if a + b > 0.0 { a / (a + b) } else { 0.0 };
-    if a == f32::INFINITY { 1.0 } else { weight }
+    let weight = Vec4::select((a + b).cmpgt(Vec4::ZERO), a / (a + b), Vec4::ZERO);
+    Vec4::select(a.cmpeq(Vec4::INFINITY), Vec4::ONE, weight)
 }

@@ -5,7 +5,7 @@
 
 use crate::bsdf::Bsdf;
 use crate::flatten::FlatScene;
-use crate::flatten::lights::{LightSamples, NOT_AREA_LIGHT};
+use crate::flatten::lights::{LIGHT_LANES, LightSamples};
 use crate::flatten::materials::{SurfaceTextures, TextureRef};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 
@@ -113,26 +113,45 @@ pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
     }
 }
 
-/// The radiance of light sample `k` with the emission texture at the sampled point: the
-/// table chose and weighted the light as if it emitted its mean radiance everywhere, so the
-/// radiance is rescaled by texel / mean (the density is unchanged: the estimate stays
+/// Rescales the radiance of each lane of `samples` that chose a light with an emission
+/// texture by texel / mean at the sampled point: the table chose and weighted the light as if
+/// it emitted its mean radiance everywhere (the density is unchanged: the estimate stays
 /// unbiased).
 #[inline]
-pub(super) fn light_sample_radiance(scene: &FlatScene, samples: &LightSamples, k: usize) -> Rgb {
-    let radiance = samples.radiance[k];
-    let light = samples.area_light[k];
-    if light == NOT_AREA_LIGHT {
-        return radiance;
+pub(super) fn texture_light_samples(scene: &FlatScene, mut samples: LightSamples) -> LightSamples {
+    if !scene.textured_emission.is_empty() {
+        samples.radiance = textured_radiance(
+            scene,
+            samples.radiance,
+            samples.area_light,
+            samples.barycentric,
+        );
     }
-    match scene.textured_emission.get(light as usize) {
-        Some(Some(e)) => {
-            let texel = lookup(
-                scene,
-                &e.texture,
-                interpolate(e.uvs, samples.barycentric[k]),
-            );
-            radiance * e.inverse_mean * texel
+    samples
+}
+
+/// The radiance of [`texture_light_samples`] in a scene with emission textures, off the
+/// common path and from copies, so that the samples stay in registers in scenes without them.
+/// Punctual lanes (`NOT_AREA_LIGHT`) have no entry and are left alone.
+#[cold]
+#[inline(never)]
+fn textured_radiance(
+    scene: &FlatScene,
+    radiance: [Vec4; 3],
+    area_light: [u32; LIGHT_LANES],
+    barycentric: [Vec4; 2],
+) -> [Vec4; 3] {
+    let mut by_channel = radiance.map(|c| c.to_array());
+    for (k, light) in area_light.into_iter().enumerate() {
+        if let Some(Some(e)) = scene.textured_emission.get(light as usize) {
+            let uv = interpolate(e.uvs, Vec2::new(barycentric[0][k], barycentric[1][k]));
+            let texel = lookup(scene, &e.texture, uv);
+            let lane = Rgb::new(by_channel[0][k], by_channel[1][k], by_channel[2][k]);
+            let textured = lane * e.inverse_mean * texel;
+            for (channel, value) in by_channel.iter_mut().zip(textured.to_array()) {
+                channel[k] = value;
+            }
         }
-        _ => radiance,
     }
+    by_channel.map(Vec4::from_array)
 }
