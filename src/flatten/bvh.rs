@@ -7,7 +7,7 @@
 //! Leaves point at contiguous runs of primitive slots: the scene stores primitives in BVH
 //! order, so there is no index indirection at trace time.
 
-use super::leaf_prims::closest_in_leaf;
+use super::leaf_prims::{closest_in_leaf, closest_in_node};
 use super::spheres::intersect_sphere;
 use super::triangles::{OriginTerms, intersect_triangle_from};
 use super::{FlatScene, Shape};
@@ -435,8 +435,36 @@ impl Bvh4 {
         stack: &mut TraversalStack,
         origin: Vec3A,
         direction: Vec3A,
-        mut t_max: f32,
+        t_max: f32,
         mut leaf: impl FnMut(u32, u32, f32) -> (u32, f32),
+    ) -> Option<(u32, f32)> {
+        let leaves = |_: usize, node: &Node4, mut lanes: u32, mut t_max: f32| {
+            let mut best_slot = u32::MAX;
+            while lanes != 0 {
+                let k = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let (slot, t) = leaf(node.child[k], node.count[k], t_max);
+                // Selects rather than a branch: whether a leaf holds a closer hit is a coin flip.
+                best_slot = if slot != u32::MAX { slot } else { best_slot };
+                t_max = t;
+            }
+            (best_slot, t_max)
+        };
+        self.closest_hit_by_node(stack, origin, direction, t_max, leaves)
+    }
+
+    /// [`Self::closest_hit_by_leaf`] with one test per node: `leaves(index, node, lanes,
+    /// t_max)` returns the closest of the primitives in the leaf lanes `lanes` (bit `k` for
+    /// lane `k`) of node `index` hit before `t_max`, as its slot and distance, or
+    /// `(u32::MAX, t_max)`.
+    #[inline(always)]
+    pub fn closest_hit_by_node(
+        &self,
+        stack: &mut TraversalStack,
+        origin: Vec3A,
+        direction: Vec3A,
+        mut t_max: f32,
+        mut leaves: impl FnMut(usize, &Node4, u32, f32) -> (u32, f32),
     ) -> Option<(u32, f32)> {
         if self.nodes.is_empty() {
             return None;
@@ -457,12 +485,9 @@ impl Bvh4 {
             let (t_near, entered) = ray.test(node, t_max);
             let t_near = t_near.to_array();
             let leaf_lanes = u32::from(self.leaf_lanes[index]);
-            let mut leaves = entered & leaf_lanes;
-            while leaves != 0 {
-                let k = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let (slot, t) = leaf(node.child[k], node.count[k], t_max);
-                // Selects rather than a branch: whether a leaf holds a closer hit is a coin flip.
+            let entered_leaves = entered & leaf_lanes;
+            if entered_leaves != 0 {
+                let (slot, t) = leaves(index, node, entered_leaves, t_max);
                 best_slot = if slot != u32::MAX { slot } else { best_slot };
                 t_max = t;
             }
@@ -786,6 +811,20 @@ impl FlatScene {
         t_max: f32,
     ) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
+        if !self.node_triangles.is_empty() {
+            let quads = &self.node_triangles;
+            return self.bvh.closest_hit_by_node(
+                stack,
+                origin,
+                direction,
+                t_max,
+                #[inline(always)]
+                |index, node, lanes, t_max| {
+                    let quad = &quads[index];
+                    closest_in_node(prims, quad, node, lanes, origin, direction, t_max)
+                },
+            );
+        }
         self.bvh.closest_hit_by_leaf(
             stack,
             origin,
@@ -861,7 +900,7 @@ impl FlatScene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flatten::leaf_prims::LeafPrim;
+    use crate::flatten::leaf_prims::{LeafPrim, node_triangles};
     use crate::flatten::spheres::SphereGeom;
     use crate::flatten::triangles::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
@@ -964,6 +1003,41 @@ mod tests {
             hits > 300,
             "the test rays hit something often enough: {hits}"
         );
+    }
+
+    #[test]
+    fn node_triangles_agree_with_brute_force_in_a_scene_with_leaves_of_one() {
+        // Below `SMALL_SCENE`, leaves hold one primitive and a node's triangles are tested
+        // together (spheres one by one).
+        let (shapes, bvh) = random_scene(2000);
+        let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+        let quads = node_triangles(&prims, &bvh);
+        assert_eq!(quads.len(), bvh.nodes.len());
+        let mut hits = 0;
+        let mut stack = TraversalStack::default();
+        for i in 0..3000 {
+            let (origin, direction, t_max) = random_ray(8, i);
+            let brute = brute_force_closest(&shapes, origin, direction, t_max);
+            let found = bvh.closest_hit_by_node(
+                &mut stack,
+                origin,
+                direction,
+                t_max,
+                |n, node, lanes, t| {
+                    closest_in_node(&prims, &quads[n], node, lanes, origin, direction, t)
+                },
+            );
+            assert_eq!(found, brute, "ray {i}");
+            hits += brute.is_some() as u32;
+        }
+        assert!(
+            hits > 300,
+            "the test rays hit something often enough: {hits}"
+        );
+        // Trees with leaves of several primitives have none.
+        let (shapes, bvh) = random_scene(6000);
+        let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+        assert!(node_triangles(&prims, &bvh).is_empty());
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! Primitives laid out for the single-ray traversals' leaf tests: one 64-byte, cache-line
 //! aligned record per BVH slot, holding what the test reads and nothing else (a triangle's
-//! normal precomputed; no enum to match).
+//! normal precomputed; no enum to match). In trees whose leaves hold one primitive each
+//! (small scenes), each node also keeps its leaves' triangles transposed, so that the
+//! closest-hit traversal tests them together.
 //!
 //! The triangle test does the same arithmetic as [`super::triangles::intersect_triangle`],
 //! so it returns the same distances bit for bit. It keeps one early exit, on the distance
@@ -9,8 +11,9 @@
 //! compares before one branch: incoherent rays mispredict early exits about as often as not.
 
 use super::Shape;
+use super::bvh::{Bvh4, Node4};
 use super::spheres::{SphereGeom, intersect_sphere};
-use crate::math::{Vec3A, Vec4};
+use crate::math::{BVec4A, Vec3A, Vec4};
 
 /// `w` of a sphere record's first vector (triangles have 0).
 const SPHERE_TAG: f32 = 1.0;
@@ -146,10 +149,10 @@ fn one_by_one(
     best
 }
 
-/// [`LeafPrim::hit_t`] on four triangles at once, as structure-of-arrays lanes (the same
-/// arithmetic in the same order, so the same distances): the lowest lane among those at the
-/// smallest distance below `t_max`, with that distance; lane 32 when nothing is hit. `None`
-/// when a record is a sphere (left to the one-by-one test).
+/// [`LeafPrim::hit_t`] on four triangles at once (the same arithmetic in the same order, so
+/// the same distances): the lowest lane among those at the smallest distance below `t_max`,
+/// with that distance; lane 32 when nothing is hit. `None` when a record is a sphere (left
+/// to the one-by-one test).
 #[inline(always)]
 fn closest_of_four(
     quad: [&LeafPrim; 4],
@@ -171,37 +174,149 @@ fn closest_of_four(
     let [e1x, e1y, e1z, _] = rows(|p| p.b);
     let [e2x, e2y, e2z, _] = rows(|p| p.c);
     let [ngx, ngy, ngz, _] = rows(|p| p.d);
-    let (dx, dy, dz) = (
-        Vec4::splat(direction.x),
-        Vec4::splat(direction.y),
-        Vec4::splat(direction.z),
-    );
-    let (cx, cy, cz) = (
-        v0x - Vec4::splat(origin.x),
-        v0y - Vec4::splat(origin.y),
-        v0z - Vec4::splat(origin.z),
-    );
-    // Dot products as `(x + y) + z` and cross products as `a.y b.z - b.y a.z`, like glam's.
-    let det = ngx * dx + ngy * dy + ngz * dz;
-    let inv_det = Vec4::ONE / det;
-    let t = (ngx * cx + ngy * cy + ngz * cz) * inv_det;
-    let (rx, ry, rz) = (dy * cz - cy * dz, dz * cx - cz * dx, dx * cy - cx * dy);
-    let u = -(rx * e2x + ry * e2y + rz * e2z) * inv_det;
-    let v = (rx * e1x + ry * e1y + rz * e1z) * inv_det;
     if tags.cmpeq(Vec4::splat(SPHERE_TAG)).any() {
         return None;
     }
-    let hit = det.abs().cmpgt(Vec4::ZERO)
-        & t.cmpgt(Vec4::ZERO)
-        & t.cmple(Vec4::splat(t_max))
-        & u.cmpge(Vec4::ZERO)
-        & v.cmpge(Vec4::ZERO)
-        & (u + v).cmple(Vec4::ONE);
-    let t = Vec4::select(hit, t, Vec4::INFINITY);
-    let nearest = t.min_element();
-    // No lane below `t_max`: an empty mask, whose trailing zeros (32) say so.
-    let closer = t.cmpeq(Vec4::splat(nearest)) & t.cmplt(Vec4::splat(t_max));
-    Some((closer.bitmask().trailing_zeros(), nearest))
+    let lanes = TriangleLanes {
+        v0: [v0x, v0y, v0z],
+        e1: [e1x, e1y, e1z],
+        e2: [e2x, e2y, e2z],
+        ng: [ngx, ngy, ngz],
+    };
+    Some(lanes.closest(BVec4A::splat(true), origin, direction, t_max))
+}
+
+/// Four triangles as structure-of-arrays lanes: each vector by axis, lane `k` = triangle `k`.
+/// All-zero lanes (no triangle) have a zero determinant, which no ray hits.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+pub struct TriangleLanes {
+    v0: [Vec4; 3],
+    e1: [Vec4; 3],
+    e2: [Vec4; 3],
+    ng: [Vec4; 3],
+}
+
+impl TriangleLanes {
+    /// The closest of the lanes in `lanes` hit within `(0, t_max]`, as in [`closest_of_four`].
+    #[inline(always)]
+    fn closest(&self, lanes: BVec4A, origin: Vec3A, direction: Vec3A, t_max: f32) -> (u32, f32) {
+        let ([v0x, v0y, v0z], [e1x, e1y, e1z], [e2x, e2y, e2z], [ngx, ngy, ngz]) =
+            (self.v0, self.e1, self.e2, self.ng);
+        let (dx, dy, dz) = (
+            Vec4::splat(direction.x),
+            Vec4::splat(direction.y),
+            Vec4::splat(direction.z),
+        );
+        let (cx, cy, cz) = (
+            v0x - Vec4::splat(origin.x),
+            v0y - Vec4::splat(origin.y),
+            v0z - Vec4::splat(origin.z),
+        );
+        // Dot products as `(x + y) + z` and cross products as `a.y b.z - b.y a.z`, like glam's.
+        let det = ngx * dx + ngy * dy + ngz * dz;
+        let inv_det = Vec4::ONE / det;
+        let t = (ngx * cx + ngy * cy + ngz * cz) * inv_det;
+        let (rx, ry, rz) = (dy * cz - cy * dz, dz * cx - cz * dx, dx * cy - cx * dy);
+        let u = -(rx * e2x + ry * e2y + rz * e2z) * inv_det;
+        let v = (rx * e1x + ry * e1y + rz * e1z) * inv_det;
+        let hit = lanes
+            & det.abs().cmpgt(Vec4::ZERO)
+            & t.cmpgt(Vec4::ZERO)
+            & t.cmple(Vec4::splat(t_max))
+            & u.cmpge(Vec4::ZERO)
+            & v.cmpge(Vec4::ZERO)
+            & (u + v).cmple(Vec4::ONE);
+        let t = Vec4::select(hit, t, Vec4::INFINITY);
+        let nearest = t.min_element();
+        // No lane below `t_max`: an empty mask, whose trailing zeros (32) say so.
+        let closer = t.cmpeq(Vec4::splat(nearest)) & t.cmplt(Vec4::splat(t_max));
+        (closer.bitmask().trailing_zeros(), nearest)
+    }
+}
+
+/// Per node of a tree whose leaves hold one primitive each (small scenes): the triangles of
+/// its leaf lanes, transposed for one four-wide test, and which lanes they are. A node's
+/// leaves are then tested together instead of one by one, each test a branch that
+/// incoherent rays mispredict.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NodeTriangles {
+    lanes: TriangleLanes,
+    /// Bit `k` set when lane `k` is a leaf holding one triangle.
+    mask: u32,
+}
+
+/// The [`NodeTriangles`] of every node of `bvh`, over the records `prims` in slot order; empty
+/// when some leaf holds more than one primitive (those are tested four wide by
+/// [`closest_in_leaf`]).
+pub fn node_triangles(prims: &[LeafPrim], bvh: &Bvh4) -> Vec<NodeTriangles> {
+    if bvh.nodes.iter().any(|n| n.count.iter().any(|&c| c > 1)) {
+        return Vec::new();
+    }
+    let node_triangles = |node: &Node4| {
+        let mut quad = NodeTriangles::default();
+        for k in 0..4 {
+            let prim = &prims[node.child[k].min(prims.len() as u32 - 1) as usize];
+            if node.count[k] != 1 || prim.a.w == SPHERE_TAG {
+                continue;
+            }
+            let fields = [prim.a, prim.b, prim.c, prim.d];
+            let rows = [
+                &mut quad.lanes.v0,
+                &mut quad.lanes.e1,
+                &mut quad.lanes.e2,
+                &mut quad.lanes.ng,
+            ];
+            for (row, field) in rows.into_iter().zip(fields) {
+                for axis in 0..3 {
+                    row[axis][k] = field[axis];
+                }
+            }
+            quad.mask |= 1 << k;
+        }
+        quad
+    };
+    bvh.nodes.iter().map(node_triangles).collect()
+}
+
+/// The closest primitive, hit within `(0, t_max)`, of the leaf lanes `lanes` of a node whose
+/// leaves hold one primitive each (`quad` is its [`NodeTriangles`]): its slot and distance,
+/// or `(u32::MAX, t_max)`. The triangles in one four-wide test, other primitives (spheres)
+/// one by one.
+#[inline(always)]
+pub fn closest_in_node(
+    prims: &[LeafPrim],
+    quad: &NodeTriangles,
+    node: &Node4,
+    lanes: u32,
+    origin: Vec3A,
+    direction: Vec3A,
+    t_max: f32,
+) -> (u32, f32) {
+    let triangles = lanes & quad.mask;
+    let selected = BVec4A::new(
+        triangles & 1 != 0,
+        triangles & 2 != 0,
+        triangles & 4 != 0,
+        triangles & 8 != 0,
+    );
+    let (lane, t) = quad.lanes.closest(selected, origin, direction, t_max);
+    // Selects rather than a branch: whether a lane was hit is a coin flip.
+    let mut best = if lane < 4 {
+        (node.child[lane as usize], t)
+    } else {
+        (u32::MAX, t_max)
+    };
+    let mut others = lanes & !quad.mask;
+    while others != 0 {
+        let k = others.trailing_zeros() as usize;
+        others &= others - 1;
+        let t = prims[node.child[k] as usize].hit_t(origin, direction, best.1);
+        if t < best.1 {
+            best = (node.child[k], t);
+        }
+    }
+    best
 }
 
 #[cfg(test)]

@@ -51,6 +51,9 @@ pub struct FlatScene {
     pub shapes: Vec<Shape>,
     /// `shapes` again, laid out for the closest-hit and single-ray occlusion tests.
     pub leaf_prims: Vec<leaf_prims::LeafPrim>,
+    /// Per BVH node, its leaves' triangles for one four-wide closest-hit test, when every
+    /// leaf holds one primitive (small scenes); else empty.
+    pub node_triangles: Vec<leaf_prims::NodeTriangles>,
     /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
     /// and for spheres.
     pub vertex_normals: Vec<[Vec3; 3]>,
@@ -356,6 +359,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         })
         .unzip();
     Ok(FlatScene {
+        node_triangles: leaf_prims::node_triangles(&leaf_prims, &bvh),
         leaf_prims,
         shapes,
         vertex_normals: Columns::ordered(&columns.normals, &order),
