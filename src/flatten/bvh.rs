@@ -589,6 +589,8 @@ pub struct Packet<'a> {
     /// Smallest and largest direction component per axis.
     directions_min: Vec3A,
     directions_max: Vec3A,
+    /// The longest segment's length.
+    longest: f32,
 }
 
 impl<'a> Packet<'a> {
@@ -598,12 +600,17 @@ impl<'a> Packet<'a> {
         debug_assert!(directions.len() <= PACKET_SIZE && t_max.len() == directions.len());
         let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
         let (mut directions_min, mut directions_max) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+        let mut longest = 0.0;
         for (&d, &t) in directions.iter().zip(t_max) {
             let end = t * d; // relative to the origin
             (lo, hi) = (lo.min(end), hi.max(end));
             (directions_min, directions_max) = (directions_min.min(d), directions_max.max(d));
+            // A plain compare (`maxss`): `f32::max` also orders NaNs, which lengths never are,
+            // and its longer code sat on the loop's critical path.
+            longest = if t > longest { t } else { longest };
         }
         Packet {
+            longest,
             directions_min,
             directions_max,
             origin,
@@ -705,7 +712,7 @@ impl Bvh4 {
             return occluded;
         }
         let axes = &axes[..constrained];
-        let packet_t_max = Vec4::splat(t_max.iter().copied().fold(0.0, f32::max) * BOX_FAR_SCALE);
+        let packet_t_max = Vec4::splat(packet.longest * BOX_FAR_SCALE);
         let box_min = packet.segments_min.to_array().map(Vec4::splat);
         let box_max = packet.segments_max.to_array().map(Vec4::splat);
         let occluded = Cell::new(0u32);

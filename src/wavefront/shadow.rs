@@ -28,11 +28,15 @@ pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut P
                 &t_max[rays.clone()],
             );
             let occluded = scene.occluded_packet(&mut stack, &packet);
+            // Summed in a local, in the same order: adding into the path's entry in memory
+            // made every addition wait for the store of the one before.
+            let mut sum = *radiance;
             for (k, c) in contribution[rays].iter().enumerate() {
                 if occluded & (1 << k) == 0 {
-                    *radiance += *c;
+                    sum += *c;
                 }
             }
+            *radiance = sum;
         }
         traced += count as u64;
     }
