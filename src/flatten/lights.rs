@@ -131,7 +131,7 @@ pub const LIGHT_LANES: usize = 4;
 /// Four light samples seen from one shading point, lane `k` of every vector being sample
 /// `k`, so that one SIMD instruction serves all four. Kept in registers from the choice of
 /// the points to the shadow rays: scalar stores that vector loads read back stall.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct LightSamples {
     /// Unit direction from the shading point toward the light, by axis.
     pub wi: [Vec4; 3],
@@ -168,26 +168,19 @@ impl LightSamples {
         )
     }
 
-    /// These samples with the lanes set in `mask` taken from `other`.
+    /// These samples with the vector lanes set in `mask` taken from `other` (the light
+    /// indices and barycentrics stay: they already tell the lanes apart).
     #[inline]
     fn merged(self, other: LightSamples, mask: BVec4A) -> LightSamples {
         let pick = |a: Vec4, b: Vec4| Vec4::select(mask, b, a);
         let pick3 = |a: [Vec4; 3], b: [Vec4; 3]| [0, 1, 2].map(|i| pick(a[i], b[i]));
-        let mask = mask.bitmask();
         LightSamples {
             wi: pick3(self.wi, other.wi),
             distance: pick(self.distance, other.distance),
             radiance: pick3(self.radiance, other.radiance),
             scale: pick(self.scale, other.scale),
             pdf_solid_angle: pick(self.pdf_solid_angle, other.pdf_solid_angle),
-            area_light: std::array::from_fn(|k| {
-                if mask >> k & 1 != 0 {
-                    other.area_light[k]
-                } else {
-                    self.area_light[k]
-                }
-            }),
-            barycentric: self.barycentric,
+            ..self
         }
     }
 }

@@ -3,7 +3,7 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::surface;
-use crate::flatten::lights::LIGHT_LANES;
+use crate::flatten::lights::{LIGHT_LANES, LightSamples};
 use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
@@ -14,6 +14,8 @@ use crate::settings::MAX_SHADOW_RAYS;
 /// Russian roulette never keeps a path with probability above this, so that paths through
 /// lossless materials (glass, white mirrors) still end.
 const MAX_SURVIVAL: f32 = 0.95;
+/// Groups of light samples taken before any of them is shaded (see `shade_one`).
+const GROUPS_PER_PASS: usize = 4;
 /// Shadow rays stop this fraction short of the light point, so the light itself never occludes.
 const SHADOW_RAY_SHORTENING: f32 = 1e-4;
 
@@ -53,6 +55,7 @@ pub fn shade_hits(
     for (j, salt) in salts.iter_mut().enumerate() {
         *salt = rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j as u32);
     }
+    let mut samples = [LightSamples::default(); GROUPS_PER_PASS];
     let mut capped = 0;
     for i in 0..n {
         let hit = Hit {
@@ -74,6 +77,7 @@ pub fn shade_hits(
         let chunk = i * per..(i + 1) * per;
         let next_event = NextEvent {
             salts,
+            samples: &mut samples,
             shadow: ShadowView {
                 count: &mut shadows.count[i],
                 origin: &mut shadows.origin[i],
@@ -118,6 +122,7 @@ struct PathView<'a> {
 /// rays and the path's chunk of the shadow batch.
 struct NextEvent<'a> {
     salts: &'a [u64],
+    samples: &'a mut [LightSamples; GROUPS_PER_PASS],
     shadow: ShadowView<'a>,
 }
 
@@ -139,7 +144,11 @@ fn shade_one(
     path: &mut PathView,
     next_event: NextEvent,
 ) -> bool {
-    let NextEvent { salts, shadow } = next_event;
+    let NextEvent {
+        salts,
+        samples,
+        shadow,
+    } = next_event;
     *shadow.count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
@@ -223,52 +232,58 @@ fn shade_one(
             [frame.s, frame.t, frame.n, front_normal].map(|v| v.to_array().map(Vec4::splat));
         let throughput = path.throughput.to_array().map(Vec4::splat);
         let mut count = 0;
-        for group in salts[..samples_needed].chunks(LIGHT_LANES) {
-            let lanes = group.len();
-            // Lanes past the group repeat its last sample; they are never kept.
-            let uniform = |k: usize| rng::uniform3_salted(key, group[k.min(lanes - 1)]);
-            let uniforms = [uniform(0), uniform(1), uniform(2), uniform(3)];
-            // Sampled from the offset origin, so the direction and length serve the shadow
-            // ray as they are (the offset is a rounding-error bound: it moves the estimate
-            // by nothing measurable).
-            let samples = scene.lights.sample(origin, &uniforms);
-            let samples = surface::texture_light_samples(scene, samples);
-            let [wi_x, wi_y, wi_z] = samples.wi;
-            let dot = |v: [Vec4; 3]| wi_x * v[0] + wi_y * v[1] + wi_z * v[2];
-            let wi_local = [dot(s), dot(t), dot(n)];
-            // Whether the light shines here from the side the shadow rays leave from.
-            let usable = dot(side).cmpgt(Vec4::ZERO) & samples.scale.cmpgt(Vec4::ZERO);
-            let (f, bsdf_pdf) = bsdf.eval_and_pdf_lanes(wo_local, &wi_local);
-            // What multiplies f and the radiance: the light's weight, the cosine, the 1/N of
-            // the N samples, and the MIS weight of this light sample against the BSDF sample
-            // that could have found the point (punctual lights: weight 1).
-            let mis_weight = if params.mis {
-                power_heuristic(
-                    Vec4::splat(params.shadow_rays as f32) * samples.pdf_solid_angle,
-                    bsdf_pdf,
-                )
-            } else {
-                Vec4::ONE
-            };
-            let factor = samples.scale * wi_local[2].abs() * Vec4::splat(inv_n) * mis_weight;
-            let channel = |c: usize| throughput[c] * f[c] * samples.radiance[c] * factor;
-            let contribution = [channel(0), channel(1), channel(2)];
-            let lit = contribution[0].cmpne(Vec4::ZERO)
-                | contribution[1].cmpne(Vec4::ZERO)
-                | contribution[2].cmpne(Vec4::ZERO);
-            // A shadow ray only where there is something to add.
-            let keep = (usable & lit).bitmask() & ((1 << lanes) - 1);
-            // Back to one vector per lane, and written without branches: every lane is
-            // stored at the next free entry, which only a kept lane takes.
-            let columns = |m: Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
-            let rays = columns(Mat4::from_cols(wi_x, wi_y, wi_z, samples.distance).transpose());
-            let [r, g, b] = contribution;
-            let colours = columns(Mat4::from_cols(r, g, b, Vec4::ZERO).transpose());
-            for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
-                shadow.direction[count] = Vec3A::from_vec4(ray);
-                shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
-                shadow.contribution[count] = colour.truncate();
-                count += (keep >> k & 1) as usize;
+        for pass in salts[..samples_needed].chunks(LIGHT_LANES * GROUPS_PER_PASS) {
+            // First every group's light samples, then their shading: each group's chain of
+            // square root and divisions is long, and the chains of a pass overlap only if no
+            // shading code sits between them.
+            let groups = pass.chunks(LIGHT_LANES);
+            for (group, samples) in groups.clone().zip(samples.iter_mut()) {
+                let lanes = group.len();
+                // Lanes past the group repeat its last sample; they are never kept.
+                let uniform = |k: usize| rng::uniform3_salted(key, group[k.min(lanes - 1)]);
+                let uniforms = [uniform(0), uniform(1), uniform(2), uniform(3)];
+                *samples =
+                    surface::texture_light_samples(scene, scene.lights.sample(origin, &uniforms));
+            }
+            for (group, samples) in groups.zip(samples.iter()) {
+                let lanes = group.len();
+                let [wi_x, wi_y, wi_z] = samples.wi;
+                let dot = |v: [Vec4; 3]| wi_x * v[0] + wi_y * v[1] + wi_z * v[2];
+                let wi_local = [dot(s), dot(t), dot(n)];
+                // Whether the light shines here from the side the shadow rays leave from.
+                let usable = dot(side).cmpgt(Vec4::ZERO) & samples.scale.cmpgt(Vec4::ZERO);
+                let (f, bsdf_pdf) = bsdf.eval_and_pdf_lanes(wo_local, &wi_local);
+                // What multiplies f and the radiance: the light's weight, the cosine, the 1/N of
+                // the N samples, and the MIS weight of this light sample against the BSDF sample
+                // that could have found the point (punctual lights: weight 1).
+                let mis_weight = if params.mis {
+                    power_heuristic(
+                        Vec4::splat(params.shadow_rays as f32) * samples.pdf_solid_angle,
+                        bsdf_pdf,
+                    )
+                } else {
+                    Vec4::ONE
+                };
+                let factor = samples.scale * wi_local[2].abs() * Vec4::splat(inv_n) * mis_weight;
+                let channel = |c: usize| throughput[c] * f[c] * samples.radiance[c] * factor;
+                let contribution = [channel(0), channel(1), channel(2)];
+                let lit = contribution[0].cmpne(Vec4::ZERO)
+                    | contribution[1].cmpne(Vec4::ZERO)
+                    | contribution[2].cmpne(Vec4::ZERO);
+                // A shadow ray only where there is something to add.
+                let keep = (usable & lit).bitmask() & ((1 << lanes) - 1);
+                // Back to one vector per lane, and written without branches: every lane is
+                // stored at the next free entry, which only a kept lane takes.
+                let columns = |m: Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
+                let rays = columns(Mat4::from_cols(wi_x, wi_y, wi_z, samples.distance).transpose());
+                let [r, g, b] = contribution;
+                let colours = columns(Mat4::from_cols(r, g, b, Vec4::ZERO).transpose());
+                for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
+                    shadow.direction[count] = Vec3A::from_vec4(ray);
+                    shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
+                    shadow.contribution[count] = colour.truncate();
+                    count += (keep >> k & 1) as usize;
+                }
             }
         }
         *shadow.count = count as u32;
