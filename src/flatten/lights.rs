@@ -400,16 +400,24 @@ impl LightTable {
             dy * inverse_distance,
             dz * inverse_distance,
         ];
-        let cos_light = -(normal_x * wi[0] + normal_y * wi[1] + normal_z * wi[2]);
+        // The cosine at the light times the distance, from the unnormalised direction, and
+        // the density and its inverse as two independent divisions: none of them waits for
+        // the chain of square root and division above.
+        let cos_times_distance = -(normal_x * dx + normal_y * dy + normal_z * dz);
         // A one-sided light shines toward its normal; a two-sided one both ways.
-        let facing = Vec4::select(two_sided.cmpgt(Vec4::ZERO), cos_light.abs(), cos_light);
-        let pdf_solid_angle = pdf_area * distance_squared / cos_light.abs();
+        let facing = Vec4::select(
+            two_sided.cmpgt(Vec4::ZERO),
+            cos_times_distance.abs(),
+            cos_times_distance,
+        );
         let shines = facing.cmpgt(Vec4::ZERO) & distance_squared.cmpgt(Vec4::ZERO);
+        let area_term = pdf_area * distance_squared * distance;
+        let pdf_solid_angle = area_term / cos_times_distance.abs();
         let samples = LightSamples {
             wi,
             distance,
             radiance: [red, green, blue],
-            scale: Vec4::select(shines, Vec4::ONE / pdf_solid_angle, Vec4::ZERO),
+            scale: Vec4::select(shines, cos_times_distance.abs() / area_term, Vec4::ZERO),
             pdf_solid_angle,
             area_light: index.map(|i| {
                 if i < self.lights.len() {
