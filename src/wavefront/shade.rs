@@ -242,6 +242,9 @@ fn shade_one(
                 // Lanes past the group repeat its last sample; they are never kept.
                 let uniform = |k: usize| rng::uniform3_salted(key, group[k.min(lanes - 1)]);
                 let uniforms = [uniform(0), uniform(1), uniform(2), uniform(3)];
+                // Sampled from the offset origin, so the direction and length serve the
+                // shadow ray as they are (the offset is a rounding-error bound: it moves the
+                // estimate by nothing measurable).
                 *samples =
                     surface::texture_light_samples(scene, scene.lights.sample(origin, &uniforms));
             }
