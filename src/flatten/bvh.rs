@@ -421,14 +421,6 @@ impl Bvh4 {
     /// [`Self::closest_hit`] with a test per leaf: `leaf(first, count, t_max)` returns the
     /// closest of the primitives in slots `first..first + count` hit before `t_max`, as its
     /// slot and distance, or `(u32::MAX, t_max)`.
-    ///
-    /// Near-to-far traversal with few branches, because incoherent (bounce) rays mispredict
-    /// most data-dependent ones: every entered inner child becomes one `u64` key (its entry
-    /// distance above its node index), a sorting network orders the four keys (lanes not
-    /// entered are 0 and sort last), all four are stored above the stack top, and the top
-    /// moves up by the number entered, so the nearest child is popped next. The node index
-    /// is stored complemented so that children at equal distance are visited in the same
-    /// order as by a stable sort (the later lane first).
     #[inline(always)]
     pub fn closest_hit_by_leaf(
         &self,
@@ -457,6 +449,14 @@ impl Bvh4 {
     /// t_max)` returns the closest of the primitives in the leaf lanes `lanes` (bit `k` for
     /// lane `k`) of node `index` hit before `t_max`, as its slot and distance, or
     /// `(u32::MAX, t_max)`.
+    ///
+    /// Near-to-far traversal with few branches, because incoherent (bounce) rays mispredict
+    /// most data-dependent ones: every entered inner child becomes one `u64` key (its entry
+    /// distance above its node index), a sorting network orders the four keys (lanes not
+    /// entered are 0 and sort last), all four are stored above the stack top, and the top
+    /// moves up by the number entered, so the nearest child is popped next. The node index
+    /// is stored complemented so that children at equal distance are visited in the same
+    /// order as by a stable sort (the later lane first).
     #[inline(always)]
     pub fn closest_hit_by_node(
         &self,

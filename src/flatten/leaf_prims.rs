@@ -13,7 +13,7 @@
 use super::Shape;
 use super::bvh::{Bvh4, Node4};
 use super::spheres::{SphereGeom, intersect_sphere};
-use crate::math::{BVec4A, Vec3A, Vec4};
+use crate::math::{BVec4A, Vec3A, Vec4, transpose4};
 
 /// `w` of a sphere record's first vector (triangles have 0).
 const SPHERE_TAG: f32 = 1.0;
@@ -160,35 +160,16 @@ fn closest_of_four(
     direction: Vec3A,
     t_max: f32,
 ) -> Option<(u32, f32)> {
-    // Rows of the 4 x 4 blocks: x, y, z of each vector over the four lanes.
-    let rows = |field: fn(&LeafPrim) -> Vec4| {
-        let [p, q, r, s] = quad.map(field);
-        [
-            Vec4::new(p.x, q.x, r.x, s.x),
-            Vec4::new(p.y, q.y, r.y, s.y),
-            Vec4::new(p.z, q.z, r.z, s.z),
-            Vec4::new(p.w, q.w, r.w, s.w),
-        ]
-    };
-    let [v0x, v0y, v0z, tags] = rows(|p| p.a);
-    let [e1x, e1y, e1z, _] = rows(|p| p.b);
-    let [e2x, e2y, e2z, _] = rows(|p| p.c);
-    let [ngx, ngy, ngz, _] = rows(|p| p.d);
-    if tags.cmpeq(Vec4::splat(SPHERE_TAG)).any() {
+    if quad.iter().any(|p| p.a.w == SPHERE_TAG) {
         return None;
     }
-    let lanes = TriangleLanes {
-        v0: [v0x, v0y, v0z],
-        e1: [e1x, e1y, e1z],
-        e2: [e2x, e2y, e2z],
-        ng: [ngx, ngy, ngz],
-    };
+    let lanes = TriangleLanes::new(quad);
     Some(lanes.closest(BVec4A::splat(true), origin, direction, t_max))
 }
 
 /// Four triangles as structure-of-arrays lanes: each vector by axis, lane `k` = triangle `k`.
 /// All-zero lanes (no triangle) have a zero determinant, which no ray hits.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriangleLanes {
     v0: [Vec4; 3],
@@ -198,6 +179,22 @@ pub struct TriangleLanes {
 }
 
 impl TriangleLanes {
+    /// The triangle records `quad` in lanes 0 to 3.
+    #[inline(always)]
+    fn new(quad: [&LeafPrim; 4]) -> Self {
+        // Each field's 4 x 4 block transposed: x, y, z of that vector over the four lanes.
+        let rows = |field: fn(&LeafPrim) -> Vec4| {
+            let [x, y, z, _] = transpose4(quad.map(field));
+            [x, y, z]
+        };
+        TriangleLanes {
+            v0: rows(|p| p.a),
+            e1: rows(|p| p.b),
+            e2: rows(|p| p.c),
+            ng: rows(|p| p.d),
+        }
+    }
+
     /// The closest of the lanes in `lanes` hit within `(0, t_max]`, as in [`closest_of_four`].
     #[inline(always)]
     fn closest(&self, lanes: BVec4A, origin: Vec3A, direction: Vec3A, t_max: f32) -> (u32, f32) {
@@ -239,7 +236,7 @@ impl TriangleLanes {
 /// its leaf lanes, transposed for one four-wide test, and which lanes they are. A node's
 /// leaves are then tested together instead of one by one, each test a branch that
 /// incoherent rays mispredict.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 pub struct NodeTriangles {
     lanes: TriangleLanes,
     /// Bit `k` set when lane `k` is a leaf holding one triangle.
@@ -253,28 +250,23 @@ pub fn node_triangles(prims: &[LeafPrim], bvh: &Bvh4) -> Vec<NodeTriangles> {
     if bvh.nodes.iter().any(|n| n.count.iter().any(|&c| c > 1)) {
         return Vec::new();
     }
+    // Lanes that are not single-triangle leaves get the all-zero record, which no ray hits.
+    let none = LeafPrim {
+        a: Vec4::ZERO,
+        b: Vec4::ZERO,
+        c: Vec4::ZERO,
+        d: Vec4::ZERO,
+    };
     let node_triangles = |node: &Node4| {
-        let mut quad = NodeTriangles::default();
-        for k in 0..4 {
-            let prim = &prims[node.child[k].min(prims.len() as u32 - 1) as usize];
-            if node.count[k] != 1 || prim.a.w == SPHERE_TAG {
-                continue;
-            }
-            let fields = [prim.a, prim.b, prim.c, prim.d];
-            let rows = [
-                &mut quad.lanes.v0,
-                &mut quad.lanes.e1,
-                &mut quad.lanes.e2,
-                &mut quad.lanes.ng,
-            ];
-            for (row, field) in rows.into_iter().zip(fields) {
-                for axis in 0..3 {
-                    row[axis][k] = field[axis];
-                }
-            }
-            quad.mask |= 1 << k;
+        let triangle = |k: usize| {
+            let prim = (node.count[k] == 1).then(|| &prims[node.child[k] as usize]);
+            prim.filter(|p| p.a.w != SPHERE_TAG)
+        };
+        let quad = [0, 1, 2, 3].map(triangle);
+        NodeTriangles {
+            lanes: TriangleLanes::new(quad.map(|p| p.unwrap_or(&none))),
+            mask: (0..4).fold(0, |mask, k| mask | u32::from(quad[k].is_some()) << k),
         }
-        quad
     };
     bvh.nodes.iter().map(node_triangles).collect()
 }

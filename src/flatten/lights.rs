@@ -4,7 +4,7 @@
 
 use super::Shape;
 use crate::math::sampling::{sample_discrete, sample_triangle, sample_uniform_sphere};
-use crate::math::{BVec4A, Mat4, Rgb, Vec2, Vec3A, Vec4, luminance};
+use crate::math::{BVec4A, Rgb, Vec2, Vec3A, Vec4, luminance, transpose4};
 use std::f32::consts::PI;
 
 /// One emitting primitive.
@@ -152,22 +152,6 @@ pub struct LightSamples {
 }
 
 impl LightSamples {
-    /// Direction of lane `k`.
-    #[inline]
-    pub fn wi(&self, k: usize) -> Vec3A {
-        Vec3A::new(self.wi[0][k], self.wi[1][k], self.wi[2][k])
-    }
-
-    /// Radiance of lane `k`.
-    #[inline]
-    pub fn radiance(&self, k: usize) -> Rgb {
-        Rgb::new(
-            self.radiance[0][k],
-            self.radiance[1][k],
-            self.radiance[2][k],
-        )
-    }
-
     /// These samples with the vector lanes set in `mask` taken from `other` (the light
     /// indices and barycentrics stay: they already tell the lanes apart).
     #[inline]
@@ -348,14 +332,11 @@ impl LightTable {
         let u = [lane_vector(|u| u.1.x), lane_vector(|u| u.1.y)];
         let barycentric = sample_triangle(u);
         let (b1, b2) = (barycentric[0].to_array(), barycentric[1].to_array());
-        let mut index = [0; LIGHT_LANES];
-        let mut punctual = 0u32;
+        let index = uniforms.map(|(u_pick, _)| sample_discrete(&self.power_cdf, u_pick));
         // Each lane's point and its light's `[normal, pdf_area]` and `[radiance, two_sided]`
         // records. A punctual lane computes harmless garbage below and is overwritten after.
-        let mut lane = |k: usize| {
-            index[k] = sample_discrete(&self.power_cdf, uniforms[k].0);
+        let lane = |k: usize| {
             let Some(light) = self.lights.get(index[k]) else {
-                punctual |= 1 << k;
                 return [Vec4::ZERO; 3];
             };
             let [normal_pdf, radiance_sided] = self.records[index[k]];
@@ -379,11 +360,7 @@ impl LightTable {
         // call per lane.
         let lanes = [lane(0), lane(1), lane(2), lane(3)];
         // Lanes to vectors: row `axis` of the transposed 4 x 4 block is that axis over the lanes.
-        let by_axis = |field: usize| {
-            let [a, b, c, d] = lanes.map(|l| l[field]);
-            let m = Mat4::from_cols(a, b, c, d).transpose();
-            [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
-        };
+        let by_axis = |field: usize| transpose4(lanes.map(|l| l[field]));
         let [point_x, point_y, point_z, _] = by_axis(0);
         let [normal_x, normal_y, normal_z, pdf_area] = by_axis(1);
         let [red, green, blue, two_sided] = by_axis(2);
@@ -428,11 +405,13 @@ impl LightTable {
             }),
             barycentric,
         };
-        if punctual == 0 {
+        let punctual = samples.area_light.map(|light| light == NOT_AREA_LIGHT);
+        if !punctual.contains(&true) {
             return samples;
         }
-        let mask = BVec4A::from_array(std::array::from_fn(|k| punctual >> k & 1 != 0));
-        samples.merged(self.punctual_samples(p, punctual, &index), mask)
+        let lanes = (0..LIGHT_LANES).fold(0, |bits, k| bits | u32::from(punctual[k]) << k);
+        let mask = BVec4A::from_array(punctual);
+        samples.merged(self.punctual_samples(p, lanes, &index), mask)
     }
 
     /// The samples of the punctual lights that the lanes set in `lanes` chose (`index`,
@@ -525,12 +504,13 @@ mod tests {
     /// One light sample seen from `p`: its point, direction, distance and weight.
     fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
         let s = table.sample(p, &[(u_pick, u); LIGHT_LANES]);
-        let wi = s.wi(0);
+        let wi = Vec3A::from_array(s.wi.map(|axis| axis.x));
+        let radiance = Rgb::from_array(s.radiance.map(|channel| channel.x));
         (
-            p + s.distance[0] * wi,
+            p + s.distance.x * wi,
             wi,
-            s.distance[0],
-            s.radiance(0) * s.scale[0],
+            s.distance.x,
+            radiance * s.scale.x,
         )
     }
 

@@ -7,6 +7,16 @@ pub mod sampling;
 
 pub use glam::{Affine3A, BVec4A, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
 
+/// The 4 x 4 block `rows` transposed: lane `k` of vector `i` becomes lane `i` of vector `k`.
+/// Turns one vector per item into one vector per coordinate (four items in SIMD lanes), and
+/// back.
+#[inline(always)]
+pub fn transpose4(rows: [Vec4; 4]) -> [Vec4; 4] {
+    let [a, b, c, d] = rows;
+    let m = Mat4::from_cols(a, b, c, d).transpose();
+    [m.x_axis, m.y_axis, m.z_axis, m.w_axis]
+}
+
 /// Linear RGB radiance, throughput or reflectance (Rec.709 primaries, no gamma).
 pub type Rgb = Vec3;
 

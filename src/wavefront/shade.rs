@@ -8,7 +8,7 @@ use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
-use crate::math::{Mat4, Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin};
+use crate::math::{Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin, transpose4};
 use crate::settings::MAX_SHADOW_RAYS;
 
 /// Russian roulette never keeps a path with probability above this, so that paths through
@@ -277,10 +277,9 @@ fn shade_one(
                 let keep = (usable & lit).bitmask() & ((1 << lanes) - 1);
                 // Back to one vector per lane, and written without branches: every lane is
                 // stored at the next free entry, which only a kept lane takes.
-                let columns = |m: Mat4| [m.x_axis, m.y_axis, m.z_axis, m.w_axis];
-                let rays = columns(Mat4::from_cols(wi_x, wi_y, wi_z, samples.distance).transpose());
+                let rays = transpose4([wi_x, wi_y, wi_z, samples.distance]);
                 let [r, g, b] = contribution;
-                let colours = columns(Mat4::from_cols(r, g, b, Vec4::ZERO).transpose());
+                let colours = transpose4([r, g, b, Vec4::ZERO]);
                 for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
                     shadow.direction[count] = Vec3A::from_vec4(ray);
                     shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
