@@ -151,9 +151,10 @@ fn error_chain(e: &anyhow::Error) -> String {
     line
 }
 
-/// Watches for SIGINT and SIGTERM. The first one is recorded in the returned cell (the render
-/// polls it after every batch); a second one ends the process at once, removing the temporary
-/// file of an image write in progress (the output file itself is only ever renamed into place).
+/// Watches for SIGINT and SIGTERM. The first one is acknowledged on stderr and recorded in
+/// the returned cell (the render polls it after every round); a second one ends the process
+/// at once, removing the temporary file of an image write in progress (the output file
+/// itself is only ever renamed into place).
 fn watch_stop_signals(output: &Path) -> Result<Arc<AtomicI32>> {
     let temporary = wavetrace::output::temporary_path(output);
     let received = Arc::new(AtomicI32::new(0));
@@ -176,14 +177,15 @@ fn watch_stop_signals(output: &Path) -> Result<Arc<AtomicI32>> {
         .context("cannot install the SIGINT/SIGTERM handler")?;
     std::thread::spawn(move || {
         for signal in signals.forever() {
-            if deliveries.load(Ordering::SeqCst) >= 2 {
-                eprintln!(
-                    "\nwavetrace: {} again, quitting at once",
-                    signal_name(signal)
-                );
-                let _ = std::fs::remove_file(&temporary);
-                std::process::exit(128 + signal);
+            let name = signal_name(signal);
+            if deliveries.load(Ordering::SeqCst) < 2 {
+                // Said at once: the render stops only at the end of its current round.
+                eprintln!("\nwavetrace: {name} received, stopping ({name} again quits at once)");
+                continue;
             }
+            eprintln!("\nwavetrace: {name} again, quitting at once");
+            let _ = std::fs::remove_file(&temporary);
+            std::process::exit(128 + signal);
         }
     });
     Ok(received)

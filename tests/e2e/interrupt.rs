@@ -52,6 +52,14 @@ fn render_and_signal(
     std::thread::sleep(Duration::from_millis(300)); // let some batches finish
     for (i, signal) in signals.iter().enumerate() {
         if i > 0 {
+            // Two signals of one kind sent before the process takes the first are merged by
+            // the kernel into one: wait until the first is acknowledged.
+            while !text.contains("received, stopping") {
+                assert!(
+                    stderr.read_line(&mut text).unwrap() > 0,
+                    "ended early: {text}"
+                );
+            }
             std::thread::sleep(gap);
         }
         let kill = Command::new("kill")
@@ -128,9 +136,9 @@ fn sigterm_writes_the_samples_finished_so_far() {
 fn a_second_sigint_quits_at_once_without_an_image() {
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("room.exr");
-    // One batch of 512x512 paths with 256 shadow rays per hit takes about 3.4 s of one core
-    // (0.5 s with 16), far longer than the 5 ms between the two signals plus starting `kill`
-    // twice on a busy machine, so both arrive before the render reaches a batch boundary.
+    // One round of 512x512 paths with 256 shadow rays per hit takes seconds, far longer than
+    // the wait for the first signal's acknowledgement, the 5 ms gap and starting `kill`
+    // twice on a busy machine, so both arrive before the render reaches a round boundary.
     let stopped = render_and_signal(
         dir.path(),
         &output,
