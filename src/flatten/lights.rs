@@ -152,6 +152,28 @@ pub struct LightSamples {
 }
 
 impl LightSamples {
+    /// `*self = samples`, field by field: the compiler copies the whole struct (192 bytes)
+    /// with a call to `memcpy`, from a stack copy of the registers that hold it.
+    #[inline(always)]
+    pub fn overwrite(&mut self, samples: LightSamples) {
+        let LightSamples {
+            wi,
+            distance,
+            radiance,
+            scale,
+            pdf_solid_angle,
+            area_light,
+            barycentric,
+        } = samples;
+        self.wi = wi;
+        self.distance = distance;
+        self.radiance = radiance;
+        self.scale = scale;
+        self.pdf_solid_angle = pdf_solid_angle;
+        self.area_light = area_light;
+        self.barycentric = barycentric;
+    }
+
     /// These samples with the vector lanes set in `mask` taken from `other` (the light
     /// indices and barycentrics stay: they already tell the lanes apart).
     #[inline]

@@ -245,8 +245,10 @@ fn shade_one(
                 // Sampled from the offset origin, so the direction and length serve the
                 // shadow ray as they are (the offset is a rounding-error bound: it moves the
                 // estimate by nothing measurable).
-                *samples =
-                    surface::texture_light_samples(scene, scene.lights.sample(origin, &uniforms));
+                samples.overwrite(surface::texture_light_samples(
+                    scene,
+                    scene.lights.sample(origin, &uniforms),
+                ));
             }
             for (group, samples) in groups.zip(samples.iter()) {
                 let lanes = group.len();
