@@ -818,6 +818,9 @@ impl FlatScene {
         t_max: f32,
     ) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
+        if let Some(flat) = &self.flat_primitives {
+            return flat.closest_hit(prims, origin, direction, t_max);
+        }
         if !self.node_triangles.is_empty() {
             let quads = &self.node_triangles;
             return self.bvh.closest_hit_by_node(
@@ -907,7 +910,9 @@ impl FlatScene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flatten::leaf_prims::{LeafPrim, node_triangles};
+    use crate::flatten::leaf_prims::{
+        FlatPrimitives, LeafPrim, MAX_FLAT_PRIMITIVES, node_triangles,
+    };
     use crate::flatten::spheres::SphereGeom;
     use crate::flatten::triangles::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
@@ -1045,6 +1050,41 @@ mod tests {
         let (shapes, bvh) = random_scene(6000);
         let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
         assert!(node_triangles(&prims, &bvh).is_empty());
+    }
+
+    #[test]
+    fn flat_primitives_agree_with_brute_force_in_a_tiny_scene() {
+        // 28 primitives (the seed room's count), four of them spheres: seven groups of
+        // triangles, the last one partly empty.
+        let (shapes, _) = random_scene(28);
+        let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+        let flat = FlatPrimitives::new(&prims).expect("28 primitives are few enough");
+        let mut hits = 0;
+        for i in 0..20_000 {
+            // Every other ray aimed near a primitive, so that most of those hit one.
+            let (origin, mut direction, t_max) = random_ray(9, i);
+            if i % 2 == 0 {
+                let target = match shapes[(i / 2) as usize % shapes.len()] {
+                    Shape::Triangle(t) => t.v0 + (t.e1 + t.e2) * 0.3,
+                    Shape::Sphere(s) => s.center + direction * s.radius,
+                };
+                direction = (target - origin + 0.05 * direction).normalize();
+            }
+            let brute = brute_force_closest(&shapes, origin, direction, t_max);
+            assert_eq!(
+                flat.closest_hit(&prims, origin, direction, t_max),
+                brute,
+                "ray {i}"
+            );
+            hits += brute.is_some() as u32;
+        }
+        assert!(
+            hits > 5000,
+            "the test rays hit something often enough: {hits}"
+        );
+        let (shapes, _) = random_scene(MAX_FLAT_PRIMITIVES as u32 + 1);
+        let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+        assert!(FlatPrimitives::new(&prims).is_none());
     }
 
     #[test]

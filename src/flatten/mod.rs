@@ -54,6 +54,9 @@ pub struct FlatScene {
     /// Per BVH node, its leaves' triangles for one four-wide closest-hit test, when every
     /// leaf holds one primitive (small scenes); else empty.
     pub node_triangles: Vec<leaf_prims::NodeTriangles>,
+    /// Every primitive, for a closest-hit query without the tree, in the smallest scenes
+    /// (at most [`leaf_prims::MAX_FLAT_PRIMITIVES`]); else `None`.
+    pub flat_primitives: Option<leaf_prims::FlatPrimitives>,
     /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
     /// and for spheres.
     pub vertex_normals: Vec<[Vec3; 3]>,
@@ -360,6 +363,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         .unzip();
     Ok(FlatScene {
         node_triangles: leaf_prims::node_triangles(&leaf_prims, &bvh),
+        flat_primitives: leaf_prims::FlatPrimitives::new(&leaf_prims),
         leaf_prims,
         shapes,
         vertex_normals: Columns::ordered(&columns.normals, &order),
