@@ -819,7 +819,7 @@ impl FlatScene {
     ) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
         if let Some(flat) = &self.flat_primitives {
-            return flat.closest_hit(prims, origin, direction, t_max);
+            return flat.closest_hit(origin, direction, t_max);
         }
         if !self.node_triangles.is_empty() {
             let quads = &self.node_triangles;
@@ -1071,11 +1071,7 @@ mod tests {
                 direction = (target - origin + 0.05 * direction).normalize();
             }
             let brute = brute_force_closest(&shapes, origin, direction, t_max);
-            assert_eq!(
-                flat.closest_hit(&prims, origin, direction, t_max),
-                brute,
-                "ray {i}"
-            );
+            assert_eq!(flat.closest_hit(origin, direction, t_max), brute, "ray {i}");
             hits += brute.is_some() as u32;
         }
         assert!(

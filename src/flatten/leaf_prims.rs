@@ -93,11 +93,16 @@ impl LeafPrim {
     #[cold]
     #[inline(never)]
     fn sphere_t(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> f32 {
-        let sphere = SphereGeom {
+        intersect_sphere(&self.sphere(), origin, direction, 0.0, t_max).unwrap_or(f32::INFINITY)
+    }
+
+    /// The sphere of a sphere record.
+    #[inline(always)]
+    fn sphere(&self) -> SphereGeom {
+        SphereGeom {
             center: Vec3A::from_vec4(self.a),
             radius: self.b.x,
-        };
-        intersect_sphere(&sphere, origin, direction, 0.0, t_max).unwrap_or(f32::INFINITY)
+        }
     }
 }
 
@@ -326,8 +331,8 @@ pub struct FlatPrimitives {
     /// Four triangles and their slots; lanes past the last triangle hold
     /// [`LeafPrim::NONE`] and no slot.
     triangles: Vec<(TriangleLanes, [u32; 4])>,
-    /// Slots of the spheres.
-    spheres: Vec<u32>,
+    /// The spheres and their slots.
+    spheres: Vec<(SphereGeom, u32)>,
 }
 
 impl FlatPrimitives {
@@ -353,20 +358,17 @@ impl FlatPrimitives {
         };
         Some(FlatPrimitives {
             triangles: triangles.chunks(4).map(group).collect(),
-            spheres,
+            spheres: spheres
+                .into_iter()
+                .map(|slot| (prims[slot as usize].sphere(), slot))
+                .collect(),
         })
     }
 
     /// The closest primitive hit within `(0, t_max)`: its slot and distance. Of equally
     /// close primitives, the triangle of the lowest slot wins, and triangles win over spheres.
     #[inline(always)]
-    pub fn closest_hit(
-        &self,
-        prims: &[LeafPrim],
-        origin: Vec3A,
-        direction: Vec3A,
-        t_max: f32,
-    ) -> Option<(u32, f32)> {
+    pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
         let mut best = (u32::MAX, t_max);
         for (lanes, slots) in &self.triangles {
             let (lane, t) = lanes.closest(BVec4A::splat(true), origin, direction, best.1);
@@ -377,10 +379,10 @@ impl FlatPrimitives {
                 best
             };
         }
-        for &slot in &self.spheres {
-            let t = prims[slot as usize].hit_t(origin, direction, best.1);
-            if t < best.1 {
-                best = (slot, t);
+        // Inlined (unlike the leaf test's sphere test): every ray meets every sphere here.
+        for (sphere, slot) in &self.spheres {
+            if let Some(t) = intersect_sphere(sphere, origin, direction, 0.0, best.1) {
+                best = (*slot, t);
             }
         }
         (best.0 != u32::MAX).then_some(best)
