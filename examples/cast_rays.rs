@@ -175,13 +175,12 @@ fn main() {
             albedo: Vec3::splat(0.5),
         },
     ));
-    let t = Instant::now();
     let scene = wavetrace::flatten(&world, &dir).expect("flatten");
-    let flatten_seconds = t.elapsed().as_secs_f64();
     let source = &scene.source_index;
     println!(
-        "{scene_name}: {triangle_count} triangles, flatten + BVH build {:.1} ms ({threads} threads), BVH depth {}",
-        flatten_seconds * 1e3,
+        "{scene_name}: {triangle_count} triangles, BVH build {:.1} ms, flatten + BVH build {:.1} ms ({threads} threads), BVH depth {}",
+        scene.times.bvh_build.as_secs_f64() * 1e3,
+        scene.times.total.as_secs_f64() * 1e3,
         scene.bvh.depth
     );
 

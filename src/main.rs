@@ -221,6 +221,12 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         for warning in scene.warnings.iter().chain(&flat.warnings) {
             eprintln!("warning: {warning}");
         }
+        eprintln!(
+            "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
+            flat.shapes.len(),
+            flat.times.bvh_build.as_secs_f64() * 1e3,
+            flat.times.total.as_secs_f64() * 1e3
+        );
         let defaults = RenderSettings::default();
         let spp = match (args.spp, args.time) {
             (Some(spp), _) => spp,

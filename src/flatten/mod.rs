@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use spheres::SphereGeom;
 use std::path::Path;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 use triangles::TriangleGeom;
 
 /// Marks a primitive that emits nothing in [`FlatScene::emitter`].
@@ -89,6 +90,19 @@ pub struct FlatScene {
     pub camera: Camera,
     /// Things skipped while flattening (degenerate triangles, ...), for the user to see.
     pub warnings: Vec<String>,
+    /// How long [`flatten`] took.
+    pub times: FlattenTimes,
+}
+
+/// How long [`flatten`] took (wall time).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FlattenTimes {
+    /// The BVH build alone: obvhs's binary tree over the primitives' boxes and its collapse
+    /// into 4-wide nodes (what a ray-tracing library's build does).
+    pub bvh_build: Duration,
+    /// All of it: the meshes' world-space triangles, the BVH, and every per-primitive column
+    /// in slot order.
+    pub total: Duration,
 }
 
 /// The primitives of one entity (a mesh's triangles or a sphere), which share its material
@@ -153,6 +167,7 @@ impl Columns {
 /// Flattens the world into a [`FlatScene`]. `path` names the scene in errors.
 /// The camera used is the first one (the earliest spawned).
 pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
+    let start = Instant::now();
     let camera = world
         .query::<(hecs::Entity, &Camera)>()
         .iter()
@@ -300,7 +315,10 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
     }
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
-    let (bvh, order) = bvh::build_bvh(&columns.shapes).ok_or_else(|| {
+    let bvh_start = Instant::now();
+    let built = bvh::build_bvh(&columns.shapes);
+    let bvh_build = bvh_start.elapsed();
+    let (bvh, order) = built.ok_or_else(|| {
         Error::input(
             path,
             None,
@@ -388,6 +406,11 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         source_index: order,
         camera,
         warnings,
+        // Last: the fields above are made in the order written.
+        times: FlattenTimes {
+            bvh_build,
+            total: start.elapsed(),
+        },
     })
 }
 
