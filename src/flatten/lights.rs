@@ -145,14 +145,21 @@ pub struct LightSamples {
     /// Density of `wi` per solid angle (choice of the light included), for multiple
     /// importance sampling; infinite for punctual lights, which BSDF sampling never finds.
     pub pdf_solid_angle: Vec4,
+}
+
+/// Where four light samples lie, for emission textures only. Apart from [`LightSamples`]:
+/// the light indices are made lane by lane, so copying them along with the samples reads
+/// four scalar stores back as one vector, which stalls (7% of the shade stage).
+#[derive(Clone, Copy, Debug)]
+pub struct LightPoints {
     /// Index of the area light sampled (into [`LightTable::lights`]), or [`NOT_AREA_LIGHT`].
     pub area_light: [u32; LIGHT_LANES],
-    /// Barycentrics `(b1, b2)` of the point on a triangle light (for its emission texture).
+    /// Barycentrics `(b1, b2)` of the point on a triangle light.
     pub barycentric: [Vec4; 2],
 }
 
 impl LightSamples {
-    /// `*self = samples`, field by field: the compiler copies the whole struct (192 bytes)
+    /// `*self = samples`, field by field: the compiler copies the whole struct (144 bytes)
     /// with a call to `memcpy`, from a stack copy of the registers that hold it.
     #[inline(always)]
     pub fn overwrite(&mut self, samples: LightSamples) {
@@ -162,20 +169,15 @@ impl LightSamples {
             radiance,
             scale,
             pdf_solid_angle,
-            area_light,
-            barycentric,
         } = samples;
         self.wi = wi;
         self.distance = distance;
         self.radiance = radiance;
         self.scale = scale;
         self.pdf_solid_angle = pdf_solid_angle;
-        self.area_light = area_light;
-        self.barycentric = barycentric;
     }
 
-    /// These samples with the vector lanes set in `mask` taken from `other` (the light
-    /// indices and barycentrics stay: they already tell the lanes apart).
+    /// These samples with the vector lanes set in `mask` taken from `other`.
     #[inline]
     fn merged(self, other: LightSamples, mask: BVec4A) -> LightSamples {
         let pick = |a: Vec4, b: Vec4| Vec4::select(mask, b, a);
@@ -186,7 +188,6 @@ impl LightSamples {
             radiance: pick3(self.radiance, other.radiance),
             scale: pick(self.scale, other.scale),
             pdf_solid_angle: pick(self.pdf_solid_angle, other.pdf_solid_angle),
-            ..self
         }
     }
 }
@@ -199,7 +200,7 @@ struct PunctualSample {
     weight: Rgb,
 }
 
-/// [`LightSamples::area_light`] of a punctual light.
+/// [`LightPoints::area_light`] of a punctual light.
 pub const NOT_AREA_LIGHT: u32 = u32::MAX;
 
 /// All lights (area lights first, then punctual ones) with the cumulative distribution of
@@ -346,10 +347,15 @@ impl LightTable {
         self.power_cdf.is_empty()
     }
 
-    /// Four light samples as seen from `p`: lane `k` chooses a light with `uniforms[k].0`
-    /// and a point on it with `uniforms[k].1` (area lights: uniform by area).
+    /// Four light samples as seen from `p`, and where they lie: lane `k` chooses a light
+    /// with `uniforms[k].0` and a point on it with `uniforms[k].1` (area lights: uniform by
+    /// area).
     #[inline(always)]
-    pub fn sample(&self, p: Vec3A, uniforms: &[(f32, Vec2); LIGHT_LANES]) -> LightSamples {
+    pub fn sample(
+        &self,
+        p: Vec3A,
+        uniforms: &[(f32, Vec2); LIGHT_LANES],
+    ) -> (LightSamples, LightPoints) {
         let lane_vector = |f: fn(&(f32, Vec2)) -> f32| Vec4::from_array(uniforms.each_ref().map(f));
         let u = [lane_vector(|u| u.1.x), lane_vector(|u| u.1.y)];
         let barycentric = sample_triangle(u);
@@ -418,6 +424,8 @@ impl LightTable {
             radiance: [red, green, blue],
             scale: Vec4::select(shines, cos_times_distance.abs() / area_term, Vec4::ZERO),
             pdf_solid_angle,
+        };
+        let points = LightPoints {
             area_light: index.map(|i| {
                 if i < self.lights.len() {
                     i as u32
@@ -427,13 +435,14 @@ impl LightTable {
             }),
             barycentric,
         };
-        let punctual = samples.area_light.map(|light| light == NOT_AREA_LIGHT);
+        let punctual = points.area_light.map(|light| light == NOT_AREA_LIGHT);
         if !punctual.contains(&true) {
-            return samples;
+            return (samples, points);
         }
         let lanes = (0..LIGHT_LANES).fold(0, |bits, k| bits | u32::from(punctual[k]) << k);
         let mask = BVec4A::from_array(punctual);
-        samples.merged(self.punctual_samples(p, lanes, &index), mask)
+        let merged = samples.merged(self.punctual_samples(p, lanes, &index), mask);
+        (merged, points)
     }
 
     /// The samples of the punctual lights that the lanes set in `lanes` chose (`index`,
@@ -466,8 +475,6 @@ impl LightTable {
             radiance: radiance.map(Vec4::from_array),
             scale: Vec4::ONE,
             pdf_solid_angle: Vec4::INFINITY,
-            area_light: [NOT_AREA_LIGHT; LIGHT_LANES],
-            barycentric: [Vec4::ZERO; 2],
         }
     }
 }
@@ -525,7 +532,7 @@ mod tests {
 
     /// One light sample seen from `p`: its point, direction, distance and weight.
     fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
-        let s = table.sample(p, &[(u_pick, u); LIGHT_LANES]);
+        let (s, _) = table.sample(p, &[(u_pick, u); LIGHT_LANES]);
         let wi = Vec3A::from_array(s.wi.map(|axis| axis.x));
         let radiance = Rgb::from_array(s.radiance.map(|channel| channel.x));
         (
@@ -593,7 +600,7 @@ mod tests {
                     let d = 10 + 3 * (4 * group + k as u32);
                     (u(d), Vec2::new(u(d + 1), u(d + 2)))
                 });
-                let samples = table.sample(p, &uniforms);
+                let (samples, _) = table.sample(p, &uniforms);
                 assert_eq!(samples.scale, Vec4::ZERO, "{p}");
             }
         }
@@ -636,9 +643,9 @@ mod tests {
                     Vec2::new(u(3 * k as u32 + 1), u(3 * k as u32 + 2)),
                 )
             });
-            let group = table.sample(p, &uniforms);
+            let (group, group_points) = table.sample(p, &uniforms);
             for (k, &one) in uniforms.iter().enumerate() {
-                let alone = table.sample(p, &[one; LIGHT_LANES]);
+                let (alone, alone_points) = table.sample(p, &[one; LIGHT_LANES]);
                 let lane = |s: &LightSamples| {
                     let mut values = s.wi.map(|v| v[k]).to_vec();
                     values.extend(s.radiance.map(|v| v[k]));
@@ -646,7 +653,7 @@ mod tests {
                     values.into_iter().map(f32::to_bits).collect::<Vec<_>>()
                 };
                 assert_eq!(lane(&group), lane(&alone), "case {i}, lane {k}");
-                assert_eq!(group.area_light[k], alone.area_light[0]);
+                assert_eq!(group_points.area_light[k], alone_points.area_light[0]);
             }
         }
     }

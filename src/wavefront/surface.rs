@@ -5,7 +5,7 @@
 
 use crate::bsdf::Bsdf;
 use crate::flatten::FlatScene;
-use crate::flatten::lights::{LIGHT_LANES, LightSamples};
+use crate::flatten::lights::{LightPoints, LightSamples};
 use crate::flatten::materials::{SurfaceTextures, TextureRef};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 
@@ -118,14 +118,12 @@ pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
 /// it emitted its mean radiance everywhere (the density is unchanged: the estimate stays
 /// unbiased).
 #[inline]
-pub(super) fn texture_light_samples(scene: &FlatScene, mut samples: LightSamples) -> LightSamples {
+pub(super) fn texture_light_samples(
+    scene: &FlatScene,
+    (mut samples, points): (LightSamples, LightPoints),
+) -> LightSamples {
     if !scene.textured_emission.is_empty() {
-        samples.radiance = textured_radiance(
-            scene,
-            samples.radiance,
-            samples.area_light,
-            samples.barycentric,
-        );
+        samples.radiance = textured_radiance(scene, samples.radiance, points);
     }
     samples
 }
@@ -135,12 +133,11 @@ pub(super) fn texture_light_samples(scene: &FlatScene, mut samples: LightSamples
 /// Punctual lanes (`NOT_AREA_LIGHT`) have no entry and are left alone.
 #[cold]
 #[inline(never)]
-fn textured_radiance(
-    scene: &FlatScene,
-    radiance: [Vec4; 3],
-    area_light: [u32; LIGHT_LANES],
-    barycentric: [Vec4; 2],
-) -> [Vec4; 3] {
+fn textured_radiance(scene: &FlatScene, radiance: [Vec4; 3], points: LightPoints) -> [Vec4; 3] {
+    let LightPoints {
+        area_light,
+        barycentric,
+    } = points;
     let mut by_channel = radiance.map(|c| c.to_array());
     for (k, light) in area_light.into_iter().enumerate() {
         if let Some(Some(e)) = scene.textured_emission.get(light as usize) {
