@@ -212,6 +212,16 @@ impl TriangleLanes {
     /// The closest of the lanes in `lanes` hit within `(0, t_max]`, as in [`closest_of_four`].
     #[inline(always)]
     fn closest(&self, lanes: BVec4A, origin: Vec3A, direction: Vec3A, t_max: f32) -> (u32, f32) {
+        let t = self.hit_distances(lanes, origin, direction, t_max);
+        let nearest = t.min_element();
+        // No lane below `t_max`: an empty mask, whose trailing zeros (32) say so.
+        let closer = t.cmpeq(Vec4::splat(nearest)) & t.cmplt(Vec4::splat(t_max));
+        (closer.bitmask().trailing_zeros(), nearest)
+    }
+
+    /// The hit distance of each lane in `lanes` within `(0, t_max]`; infinity elsewhere.
+    #[inline(always)]
+    fn hit_distances(&self, lanes: BVec4A, origin: Vec3A, direction: Vec3A, t_max: f32) -> Vec4 {
         let ([v0x, v0y, v0z], [e1x, e1y, e1z], [e2x, e2y, e2z], [ngx, ngy, ngz]) =
             (self.v0, self.e1, self.e2, self.ng);
         let (dx, dy, dz) = (
@@ -238,11 +248,7 @@ impl TriangleLanes {
             & u.cmpge(Vec4::ZERO)
             & v.cmpge(Vec4::ZERO)
             & (u + v).cmple(Vec4::ONE);
-        let t = Vec4::select(hit, t, Vec4::INFINITY);
-        let nearest = t.min_element();
-        // No lane below `t_max`: an empty mask, whose trailing zeros (32) say so.
-        let closer = t.cmpeq(Vec4::splat(nearest)) & t.cmplt(Vec4::splat(t_max));
-        (closer.bitmask().trailing_zeros(), nearest)
+        Vec4::select(hit, t, Vec4::INFINITY)
     }
 }
 
@@ -369,15 +375,24 @@ impl FlatPrimitives {
     /// close primitives, the triangle of the lowest slot wins, and triangles win over spheres.
     #[inline(always)]
     pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
+        // Every group's distances first, then the nearest of all: a group's test does not
+        // wait for the nearest hit of the groups before it.
+        let mut distances = [Vec4::INFINITY; MAX_FLAT_PRIMITIVES.div_ceil(4)];
+        let mut nearest_by_lane = Vec4::INFINITY;
+        for ((lanes, _), t) in self.triangles.iter().zip(&mut distances) {
+            *t = lanes.hit_distances(BVec4A::splat(true), origin, direction, t_max);
+            nearest_by_lane = nearest_by_lane.min(*t);
+        }
+        let nearest = Vec4::splat(nearest_by_lane.min_element());
+        // The first group holding the nearest distance, found without a branch per group.
+        let groups = (distances.iter().enumerate()).fold(0u32, |bits, (g, t)| {
+            bits | u32::from(t.cmpeq(nearest).any()) << g
+        });
         let mut best = (u32::MAX, t_max);
-        for (lanes, slots) in &self.triangles {
-            let (lane, t) = lanes.closest(BVec4A::splat(true), origin, direction, best.1);
-            // Selects rather than a branch: whether a group holds a closer hit is a coin flip.
-            best = if lane < 4 {
-                (slots[lane as usize], t)
-            } else {
-                best
-            };
+        if nearest.x < t_max {
+            let g = groups.trailing_zeros() as usize;
+            let lane = distances[g].cmpeq(nearest).bitmask().trailing_zeros();
+            best = (self.triangles[g].1[lane as usize], nearest.x);
         }
         // Inlined (unlike the leaf test's sphere test): every ray meets every sphere here.
         for (sphere, slot) in &self.spheres {
