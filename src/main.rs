@@ -223,7 +223,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         eprintln!(
             "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
-            flat.shapes.len(),
+            flat.leaf_prims.len(),
             flat.times.bvh_build.as_secs_f64() * 1e3,
             flat.times.total.as_secs_f64() * 1e3
         );

@@ -986,7 +986,7 @@ impl FlatScene {
     /// segment `k` of the packet is blocked.
     #[inline]
     pub fn occluded_packet(&self, stack: &mut TraversalStack, packet: &Packet) -> u32 {
-        let shapes = &self.shapes;
+        let prims = &self.leaf_prims;
         let Packet {
             origin,
             directions,
@@ -995,7 +995,7 @@ impl FlatScene {
         } = *packet;
         self.bvh.any_hit_packet(stack, packet, |slot, mut open| {
             let mut blocked = 0;
-            match &shapes[slot as usize] {
+            match &prims[slot as usize].shape() {
                 Shape::Triangle(tri) => {
                     let terms = OriginTerms::new(tri, origin);
                     if packet.stays_on_one_side(terms.ng, terms.c) {

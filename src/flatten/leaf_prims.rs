@@ -14,6 +14,7 @@
 use super::Shape;
 use super::bvh::{Bvh4, Node4};
 use super::spheres::{SphereGeom, intersect_sphere};
+use super::triangles::TriangleGeom;
 use crate::math::{BVec4A, Vec3A, Vec4, transpose4};
 
 /// `w` of a sphere record's first vector (triangles have 0).
@@ -58,6 +59,19 @@ impl LeafPrim {
                 d: Vec4::ZERO,
             },
         }
+    }
+
+    /// The primitive this record holds.
+    #[inline(always)]
+    pub fn shape(&self) -> Shape {
+        if self.a.w == SPHERE_TAG {
+            return Shape::Sphere(self.sphere());
+        }
+        Shape::Triangle(TriangleGeom {
+            v0: Vec3A::from_vec4(self.a),
+            e1: Vec3A::from_vec4(self.b),
+            e2: Vec3A::from_vec4(self.c),
+        })
     }
 
     /// Hit distance in `(0, t_max]`, or infinity.

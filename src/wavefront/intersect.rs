@@ -18,10 +18,10 @@ pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch
             .closest_hit(&mut stack, origin, direction, f32::INFINITY)
             .unwrap_or((NO_HIT, f32::INFINITY));
         (hits.slot[i], hits.t[i]) = (slot, t);
-        if let Some(Shape::Triangle(tri)) = scene.shapes.get(slot as usize) {
+        if let Some(Shape::Triangle(tri)) = scene.leaf_prims.get(slot as usize).map(|p| p.shape()) {
             // Barycentrics only for the winner; the traversal computed them for every candidate.
             hits.barycentric[i] = crate::flatten::triangles::intersect_triangle(
-                tri,
+                &tri,
                 origin,
                 direction,
                 0.0,

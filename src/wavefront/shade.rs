@@ -158,7 +158,7 @@ fn shade_one(
     let bounce = params.bounce;
 
     // --- Surface: position, its rounding error, geometric and shading normals.
-    let (p, p_error, ng, ns) = match scene.shapes[slot] {
+    let (p, p_error, ng, ns) = match scene.shape(slot) {
         Shape::Triangle(tri) => {
             let ng = tri.normal_unnormalized().normalize();
             let [n0, n1, n2] = scene.vertex_normals[slot];

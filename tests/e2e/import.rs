@@ -326,8 +326,7 @@ fn blender_obj_export_gives_the_documented_objects() {
     // The caps triangulate to their full area: pi r^2 for a 32-gon of radius 0.5, 2 caps.
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
     let cap_area: f32 = flat
-        .shapes
-        .iter()
+        .shapes()
         .filter_map(|s| match s {
             Shape::Triangle(t) if t.normal_unnormalized().normalize().z.abs() > 0.999 => {
                 let centre_x = t.v0.x;
@@ -473,7 +472,7 @@ fn data_uri_non_indexed_matrix_and_negative_scale_without_normals() {
     }
     // The mirror keeps the front on glTF's +Z side (world -Y): flatten flips the winding.
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
-    match flat.shapes[0] {
+    match flat.shape(0) {
         Shape::Triangle(t) => {
             let n = t.normal_unnormalized().normalize();
             assert!(close(n.into(), Vec3::new(0.0, -1.0, 0.0), 1e-6), "{n}");
@@ -863,8 +862,7 @@ fn obj_without_mtl_warns_and_concave_faces_keep_their_area() {
     );
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
     let area: f32 = flat
-        .shapes
-        .iter()
+        .shapes()
         .map(|s| match s {
             Shape::Triangle(t) => t.area(),
             _ => 0.0,

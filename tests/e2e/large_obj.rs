@@ -62,7 +62,11 @@ fn load_a_million_line_obj() {
     let elapsed = start.elapsed();
     let after = peak_rss();
     // The room's own primitives come with the grid.
-    assert!(flat.shapes.len() >= triangles, "{}", flat.shapes.len());
+    assert!(
+        flat.leaf_prims.len() >= triangles,
+        "{}",
+        flat.leaf_prims.len()
+    );
     if let (Some(before), Some(after)) = (before, after) {
         let grown = after.saturating_sub(before);
         let bound = BYTES_PER_TRIANGLE * triangles as u64 + FIXED_BYTES;
