@@ -399,6 +399,7 @@ impl FlatPrimitives {
         }
         let nearest = Vec4::splat(nearest_by_lane.min_element());
         // The first group holding the nearest distance, found without a branch per group.
+        let distances = &distances[..self.triangles.len()];
         let groups = (distances.iter().enumerate()).fold(0u32, |bits, (g, t)| {
             bits | u32::from(t.cmpeq(nearest).any()) << g
         });
