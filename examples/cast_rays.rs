@@ -14,7 +14,9 @@
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use wavetrace::FlatScene;
 use wavetrace::flatten::bvh::TraversalStack;
+use wavetrace::flatten::ray_batches::Ray;
 use wavetrace::math::{Vec3, Vec3A};
 use wavetrace::scene::{Camera, Material, Mesh, Name};
 
@@ -46,19 +48,14 @@ fn u32s(bytes: &[u8]) -> Vec<u32> {
         .collect()
 }
 
-/// One ray: origin, direction, t_max (t_min is always 0 in these sets).
-type Ray = (Vec3A, Vec3A, f32);
-
 fn read_rays(path: &Path, limit: usize) -> Vec<Ray> {
     f32s(&read_npy(path))
         .chunks_exact(8)
         .take(limit)
-        .map(|r| {
-            (
-                Vec3A::new(r[0], r[1], r[2]),
-                Vec3A::new(r[4], r[5], r[6]),
-                r[7],
-            )
+        .map(|r| Ray {
+            origin: Vec3A::new(r[0], r[1], r[2]),
+            direction: Vec3A::new(r[4], r[5], r[6]),
+            t_max: r[7],
         })
         .collect()
 }
@@ -96,28 +93,78 @@ fn median_seconds(threads: usize, repeats: usize, f: impl Fn() + Sync + Send) ->
     (wall[wall.len() / 2], cpu[cpu.len() / 2])
 }
 
-/// Casts closest-hit rays; returns how many hit. Not inlined, so that profilers can select it.
-#[inline(never)]
-fn cast_closest(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
-    rays.par_iter()
-        .with_min_len(1024)
-        .map_init(TraversalStack::default, |stack, &(o, d, t)| {
-            scene.closest_hit(stack, o, d, t).is_some()
-        })
-        .filter(|&hit| hit)
-        .count()
+/// The order in which a set's rays are cast.
+#[derive(Clone, Copy, Debug)]
+enum Order {
+    /// One query per ray, in the set's order (what Embree's single-ray figures time).
+    Given,
+    /// The batch queries: Morton order of the origins, sort included in the time.
+    Morton,
 }
 
-/// Casts occlusion rays; returns how many are blocked. Not inlined (see [`cast_closest`]).
+/// Closest hits of `rays`, in their order. Not inlined, so that profilers can select it.
 #[inline(never)]
-fn cast_occluded(scene: &wavetrace::FlatScene, rays: &[Ray]) -> usize {
-    rays.par_iter()
-        .with_min_len(1024)
-        .map_init(TraversalStack::default, |stack, &(o, d, t)| {
-            scene.occluded(stack, o, d, t)
-        })
-        .filter(|&blocked| blocked)
-        .count()
+fn cast_closest(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<Option<(u32, f32)>> {
+    match order {
+        Order::Given => rays
+            .par_iter()
+            .with_min_len(1024)
+            .map_init(TraversalStack::default, |stack, r| {
+                scene.closest_hit(stack, r.origin, r.direction, r.t_max)
+            })
+            .collect(),
+        Order::Morton => scene.closest_hits(rays),
+    }
+}
+
+/// Occlusion of `rays`, in their order. Not inlined (see [`cast_closest`]).
+#[inline(never)]
+fn cast_occluded(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<bool> {
+    match order {
+        Order::Given => rays
+            .par_iter()
+            .with_min_len(1024)
+            .map_init(TraversalStack::default, |stack, r| {
+                scene.occluded(stack, r.origin, r.direction, r.t_max)
+            })
+            .collect(),
+        Order::Morton => scene.occlusions(rays),
+    }
+}
+
+/// The share of `rays` (set `set` of scene `scene_name`) on which the answers cast in
+/// `order` agree with Embree's reference answers in `dir`.
+fn agreement(
+    scene: &FlatScene,
+    dir: &Path,
+    scene_name: &str,
+    set: &str,
+    rays: &[Ray],
+    order: Order,
+) -> f64 {
+    let reference = |what: &str| read_npy(&dir.join(format!("ref_{scene_name}_{set}_{what}.npy")));
+    let agreeing = if set == "shadow" {
+        let occluded = reference("occluded");
+        let ours = cast_occluded(scene, rays, order);
+        ours.iter()
+            .zip(&occluded)
+            .filter(|(a, b)| **a == (**b != 0))
+            .count()
+    } else {
+        let (ref_t, ref_prim) = (f32s(&reference("t")), u32s(&reference("prim")));
+        let ours = cast_closest(scene, rays, order);
+        ours.iter()
+            .zip(ref_t.iter().zip(&ref_prim))
+            .filter(|(ours, (rt, rp))| match ours {
+                None => !rt.is_finite(),
+                Some((slot, t)) => {
+                    scene.source_index[*slot as usize] == **rp
+                        || (t - **rt).abs() <= 1e-5 * rt.abs().max(1e-3)
+                }
+            })
+            .count()
+    };
+    agreeing as f64 / rays.len() as f64
 }
 
 fn main() {
@@ -176,7 +223,6 @@ fn main() {
         },
     ));
     let scene = wavetrace::flatten(&world, &dir).expect("flatten");
-    let source = &scene.source_index;
     println!(
         "{scene_name}: {triangle_count} triangles, BVH build {:.1} ms, flatten + BVH build {:.1} ms ({threads} threads), BVH depth {}",
         scene.times.bvh_build.as_secs_f64() * 1e3,
@@ -185,8 +231,8 @@ fn main() {
     );
 
     println!(
-        "{:<8} {:>10} {:>16} {:>16} {:>11}",
-        "set", "Mrays/s", "1 thread Mrays/s", "Mrays/CPU-s", "agreement"
+        "{:<8} {:<7} {:>10} {:>16} {:>16} {:>11}",
+        "set", "order", "Mrays/s", "1 thread Mrays/s", "Mrays/CPU-s", "agreement"
     );
     for set in sets.iter().map(String::as_str) {
         let rays_file = if set == "primary" {
@@ -196,74 +242,28 @@ fn main() {
         };
         let rays = read_rays(&rays_file, limit);
         let n = rays.len();
-        let (agreement, trace): (f64, Box<dyn Fn() + Sync + Send>) = if set == "shadow" {
-            let reference = read_npy(&dir.join(format!("ref_{scene_name}_shadow_occluded.npy")));
-            let ours: Vec<bool> = rays
-                .par_iter()
-                .map_init(TraversalStack::default, |stack, &(o, d, t)| {
-                    scene.occluded(stack, o, d, t)
-                })
-                .collect();
-            let agree = ours
-                .iter()
-                .zip(&reference)
-                .filter(|(a, b)| **a == (**b != 0))
-                .count();
-            let scene = &scene;
-            let rays = &rays;
-            (
-                agree as f64 / n as f64,
-                Box::new(move || {
-                    std::hint::black_box(cast_occluded(scene, rays));
-                }),
-            )
-        } else {
-            let ref_t = f32s(&read_npy(
-                &dir.join(format!("ref_{scene_name}_{set}_t.npy")),
-            ));
-            let ref_prim = u32s(&read_npy(
-                &dir.join(format!("ref_{scene_name}_{set}_prim.npy")),
-            ));
-            let ours: Vec<Option<(u32, f32)>> = rays
-                .par_iter()
-                .map_init(TraversalStack::default, |stack, &(o, d, t)| {
-                    scene.closest_hit(stack, o, d, t)
-                })
-                .collect();
-            let agree = ours
-                .iter()
-                .zip(ref_t.iter().zip(&ref_prim))
-                .filter(|(ours, (rt, rp))| match ours {
-                    None => !rt.is_finite(),
-                    Some((slot, t)) => {
-                        source[*slot as usize] == **rp
-                            || (t - **rt).abs() <= 1e-5 * rt.abs().max(1e-3)
-                    }
-                })
-                .count();
-            let scene = &scene;
-            let rays = &rays;
-            (
-                agree as f64 / n as f64,
-                Box::new(move || {
-                    std::hint::black_box(cast_closest(scene, rays));
-                }),
-            )
-        };
-        let (all, _) = median_seconds(threads, repeats, &trace);
-        let (one, one_cpu) = median_seconds(1, repeats, &trace);
-        println!(
-            "{set:<8} {:>10.2} {:>16.2} {:>16.2} {:>10.4}%{}",
-            n as f64 / all / 1e6,
-            n as f64 / one / 1e6,
-            n as f64 / one_cpu / 1e6,
-            100.0 * agreement,
-            if agreement >= 0.9999 {
-                ""
-            } else {
-                "  BELOW 99.99%"
-            }
-        );
+        for order in [Order::Given, Order::Morton] {
+            let trace = || match set {
+                "shadow" => drop(std::hint::black_box(cast_occluded(&scene, &rays, order))),
+                _ => drop(std::hint::black_box(cast_closest(&scene, &rays, order))),
+            };
+            let agreement = agreement(&scene, &dir, scene_name, set, &rays, order);
+            let (all, _) = median_seconds(threads, repeats, trace);
+            let (one, one_cpu) = median_seconds(1, repeats, trace);
+            println!(
+                "{set:<8} {:<7} {:>10.2} {:>16.2} {:>16.2} {:>10.4}%{}",
+                format!("{order:?}").to_lowercase(),
+                n as f64 / all / 1e6,
+                n as f64 / one / 1e6,
+                n as f64 / one_cpu / 1e6,
+                100.0 * agreement,
+                if agreement >= 0.9999 {
+                    ""
+                } else {
+                    "  BELOW 99.99%"
+                }
+            );
+        }
     }
     println!(
         "(medians of {repeats} runs; load average at the end: {})",

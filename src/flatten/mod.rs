@@ -10,6 +10,7 @@ pub mod bvh;
 pub mod leaf_prims;
 pub mod lights;
 pub mod materials;
+pub mod ray_batches;
 pub mod spheres;
 pub mod triangles;
 
