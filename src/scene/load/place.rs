@@ -112,7 +112,7 @@ pub(super) fn merge_model(
 }
 
 /// The bare-model rule: the seed room with `model` standing on its floor at
-/// [`ROOM_FREE_FLOOR_CENTRE`], scaled to fit a [`ROOM_MODEL_SIZE`] box, seen by the room's
+/// [`ROOM_FREE_FLOOR_CENTRE`], scaled to fit a `ROOM_MODEL_SIZE` (3 units) box, seen by the room's
 /// camera. The model's cameras are dropped.
 pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
     let (lo, hi) = bounding_box(&model.world)
