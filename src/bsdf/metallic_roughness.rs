@@ -137,7 +137,7 @@ impl MetallicRoughness {
 
     /// Moves the pair to `wo`'s side (`wo.z > 0`) and returns the relative index seen from there.
     #[inline]
-    fn to_upper(&self, wo: Vec3A, wi: Vec3A) -> (Vec3A, Vec3A, f32) {
+    fn to_upper(self, wo: Vec3A, wi: Vec3A) -> (Vec3A, Vec3A, f32) {
         if wo.z > 0.0 {
             (wo, wi, self.ior)
         } else {
@@ -304,7 +304,7 @@ impl MetallicRoughness {
             wi_up * Vec3A::new(1.0, 1.0, -1.0)
         };
         let pdf = self.pdf(wo, wi);
-        if !(pdf > 0.0) {
+        if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
         let weight = self.eval(wo, wi) * (wi.z.abs() / pdf);

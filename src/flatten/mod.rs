@@ -17,7 +17,7 @@ pub mod triangles;
 use crate::bsdf::microfacet::alpha_from_roughness;
 use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
 use crate::error::{Error, Result};
-use crate::math::{Mat3A, Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
     Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
     VertexTangents,
@@ -253,10 +253,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
             emitter = None; // a black emission texture: nothing is emitted
         }
-        let tangents = match textures.and_then(|t| t.normal.as_ref()) {
-            Some(_) => Some(tangents),
-            None => None,
-        };
+        let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
         groups.push(Group {
             first: columns.shapes.len(),
             material,
@@ -573,7 +570,7 @@ fn flatten_mesh(
             format!("vertex {bad} is not finite"),
         ));
     }
-    let normal_matrix = Mat3A::from(world_from_object.matrix3).inverse().transpose();
+    let normal_matrix = world_from_object.matrix3.inverse().transpose();
     let flips = world_from_object.matrix3.determinant() < 0.0;
     let world: Vec<Vec3A> = mesh
         .positions

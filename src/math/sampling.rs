@@ -194,7 +194,9 @@ mod tests {
         // Short tables are counted, long ones searched: both give the first entry above the
         // target, with ties (zero weights) and the clamp at the end.
         for len in 1..40 {
-            let cdf: Vec<f32> = (0..len).map(|i| ((i + 1) / 2 * 3) as f32 + 1.0).collect();
+            let cdf: Vec<f32> = (0..len)
+                .map(|i: usize| (i.div_ceil(2) * 3) as f32 + 1.0)
+                .collect();
             for i in 0..=200 {
                 let u = i as f32 / 200.0;
                 let target = u * cdf[len - 1];

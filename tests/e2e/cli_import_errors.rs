@@ -43,7 +43,7 @@ fn gltf_doc(positions: &[[f32; 3]], indices: &[u16], bin_name: &str) -> (Value, 
         .collect();
     let positions_length = bin.len();
     bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     // glTF requires POSITION's min and max (f32::min/max skip NaN)
@@ -77,7 +77,7 @@ fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
     let mut doc = doc.clone();
     doc["buffers"][0] = json!({"byteLength": bin.len()});
     let mut json = serde_json::to_vec(&doc).unwrap();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();

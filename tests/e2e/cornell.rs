@@ -109,7 +109,9 @@ fn cornell_box_matches_reference() {
         time_a.as_secs_f64(),
         time_b.as_secs_f64()
     );
-    let channels: [(&str, fn(Vec3) -> f32, f64); 4] = [
+    // Each channel's name, how it is read from a pixel, and its bound.
+    type Channel = (&'static str, fn(Vec3) -> f32, f64);
+    let channels: [Channel; 4] = [
         ("luminance", luminance, 4.0),
         ("red", |c| c.x, 4.5),
         ("green", |c| c.y, 4.5),

@@ -373,7 +373,7 @@ struct Buffer {
 
 impl Buffer {
     fn view(&mut self, data: &[u8]) -> usize {
-        while self.bytes.len() % 4 != 0 {
+        while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
         }
         self.views

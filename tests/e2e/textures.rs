@@ -18,7 +18,7 @@ struct Buffer {
 
 impl Buffer {
     fn push(&mut self, data: Vec<u8>, accessor: Value) -> usize {
-        while self.bytes.len() % 4 != 0 {
+        while !self.bytes.len().is_multiple_of(4) {
             self.bytes.push(0);
         }
         self.views

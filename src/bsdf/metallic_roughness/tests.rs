@@ -6,6 +6,7 @@ use super::*;
 use crate::bsdf::chi_square::{ChiSquareSetup, chi_square_test};
 use crate::bsdf::microfacet::masking_shadowing;
 use crate::math::rng::{path_key, uniform, uniform2};
+use std::f32::consts::TAU;
 
 fn direction(theta: f32, phi: f32) -> Vec3A {
     Vec3A::new(
@@ -137,8 +138,8 @@ fn reflection_is_reciprocal() {
             let a = uniform2(key, 0, 0);
             let b = uniform2(key, 0, 2);
             let side = if uniform(key, 0, 4) < 0.5 { 1.0 } else { -1.0 };
-            let wo = direction(a.x * 1.5, a.y * 6.28) * Vec3A::new(1.0, 1.0, side);
-            let wi = direction(b.x * 1.5, b.y * 6.28) * Vec3A::new(1.0, 1.0, side);
+            let wo = direction(a.x * 1.5, a.y * TAU) * Vec3A::new(1.0, 1.0, side);
+            let wi = direction(b.x * 1.5, b.y * TAU) * Vec3A::new(1.0, 1.0, side);
             let (f, g) = (m.eval(wo, wi), m.eval(wi, wo));
             assert!(
                 (f - g).abs().max_element() <= 1e-4 * f.max_element().max(1e-2),
@@ -161,8 +162,8 @@ fn refraction_scales_reciprocally_by_eta_squared() {
         let key = path_key(6, k, 0);
         let a = uniform2(key, 0, 0);
         let b = uniform2(key, 0, 2);
-        let wo = direction(a.x * 1.5, a.y * 6.28);
-        let wi = -direction(b.x * 1.5, b.y * 6.28);
+        let wo = direction(a.x * 1.5, a.y * TAU);
+        let wi = -direction(b.x * 1.5, b.y * TAU);
         let (f, g) = (m.eval(wo, wi).x, m.eval(wi, wo).x);
         // wo outside (index 1), wi inside (index ior).
         let (lhs, rhs) = (f, g / (m.ior * m.ior));
@@ -272,8 +273,8 @@ fn no_specular_layer_is_exactly_lambertian() {
     assert_eq!(m.as_lambertian(), Some(albedo));
     for k in 0..1000u32 {
         let key = path_key(9, k, 0);
-        let wo = direction(uniform(key, 0, 0) * 1.5, uniform(key, 0, 1) * 6.28);
-        let wi = direction(uniform(key, 0, 2) * 3.0, uniform(key, 0, 3) * 6.28);
+        let wo = direction(uniform(key, 0, 0) * 1.5, uniform(key, 0, 1) * TAU);
+        let wi = direction(uniform(key, 0, 2) * 3.0, uniform(key, 0, 3) * TAU);
         assert_eq!(m.eval(wo, wi), lambert::eval(albedo, wo, wi));
         assert_eq!(m.pdf(wo, wi), lambert::pdf(wo, wi));
         let (u_lobe, u) = (uniform(key, 0, 4), uniform2(key, 0, 5));

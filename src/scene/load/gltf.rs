@@ -324,7 +324,7 @@ fn import_textures(
     for (index, encoding) in texture_uses(document) {
         let texture = &textures[index];
         let image = texture.source();
-        if !images.contains_key(&image.index()) {
+        if let std::collections::hash_map::Entry::Vacant(e) = images.entry(image.index()) {
             let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
                 .map_err(|e| {
                     Error::input(
@@ -333,7 +333,7 @@ fn import_textures(
                         format!("cannot decode: {e}"),
                     )
                 })?;
-            images.insert(image.index(), data);
+            e.insert(data);
         }
         let data = &images[&image.index()];
         use gltf::image::Format as F;
@@ -595,19 +595,19 @@ fn read_primitive(
             ),
         ];
         for (accessor, what, types, dimensions) in expected {
-            if let Some(a) = accessor {
-                if !types.contains(&a.data_type()) || a.dimensions() != dimensions {
-                    return Err(Error::input(
-                        path,
-                        at(),
-                        format!(
-                            "{what} accessor {} holds {:?} {:?}, which glTF does not allow there",
-                            a.index(),
-                            a.dimensions(),
-                            a.data_type()
-                        ),
-                    ));
-                }
+            if let Some(a) = accessor
+                && (!types.contains(&a.data_type()) || a.dimensions() != dimensions)
+            {
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!(
+                        "{what} accessor {} holds {:?} {:?}, which glTF does not allow there",
+                        a.index(),
+                        a.dimensions(),
+                        a.data_type()
+                    ),
+                ));
             }
         }
     }
@@ -653,7 +653,7 @@ fn read_primitive(
             ));
         }
     };
-    if flat.len() % 3 != 0 {
+    if !flat.len().is_multiple_of(3) {
         return Err(Error::input(
             path,
             at(),

@@ -34,7 +34,6 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     // Line number (1-based) of every polygon, in file order, to name faces in messages; this
     // also refuses face indices that tobj would mishandle.
@@ -372,7 +371,7 @@ pub(crate) fn triangulate_polygon(
         // Zero net area: a bow tie (refused below) or a degenerate polygon (skipped).
         let (a, b, c) = (p(polygon[0]), p(polygon[1]), p(polygon[2]));
         let n = (b - a).cross(c - a);
-        if !(n.length_squared() > 0.0) {
+        if n.length_squared().is_nan() || n.length_squared() <= 0.0 {
             return Ok(());
         }
         n.normalize()

@@ -113,13 +113,13 @@ impl RenderDef {
             spp: check(&self.spp, 1..=u32::MAX, "spp (samples per pixel)")?,
             shadow_rays: check(&self.shadow_rays, 1..=MAX_SHADOW_RAYS, "shadow_rays")?,
         };
-        if let (Some(w), Some(h), Some(at)) = (defaults.width, defaults.height, &self.height) {
-            if w as u64 * h as u64 > MAX_PIXELS {
-                return Err(source.error(
-                    at.span().start,
-                    format!("image size {w}x{h} exceeds the limit of {MAX_PIXELS} pixels"),
-                ));
-            }
+        if let (Some(w), Some(h), Some(at)) = (defaults.width, defaults.height, &self.height)
+            && w as u64 * h as u64 > MAX_PIXELS
+        {
+            return Err(source.error(
+                at.span().start,
+                format!("image size {w}x{h} exceeds the limit of {MAX_PIXELS} pixels"),
+            ));
         }
         Ok(defaults)
     }
