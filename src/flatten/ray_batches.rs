@@ -237,6 +237,7 @@ mod tests {
         };
         let unit = Aabb::new(Vec3A::ZERO, Vec3A::splat(2.0));
         assert_eq!(morton_order(&[ray; 100], unit), None);
+        assert_eq!(morton_order(&[], unit), None);
     }
 
     #[test]
