@@ -369,6 +369,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
         }
     }
+    let mut lights = LightTable::new(area_lights, delta_lights);
+    let textured_emission = if textured_emission.iter().any(Option::is_some) {
+        lights.locate_samples_on_triangles();
+        textured_emission
+    } else {
+        Vec::new()
+    };
     let group_of = |prim: u32| groups.partition_point(|g| g.first <= prim as usize) - 1;
     let (material, emitter) = order
         .par_iter()
@@ -403,12 +410,8 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         material_textures: materials.iter().map(|m| m.1).collect(),
         materials: materials.iter().map(|m| m.0).collect(),
         textures: interner.textures,
-        lights: LightTable::new(area_lights, delta_lights),
-        textured_emission: if textured_emission.iter().any(Option::is_some) {
-            textured_emission
-        } else {
-            Vec::new()
-        },
+        lights,
+        textured_emission,
         bvh,
         source_index: order,
         camera,

@@ -25,6 +25,12 @@ impl TriangleGeom {
         }
     }
 
+    /// The three vertices (`v0 + e1` and `v0 + e2` as rounded, not necessarily the input's).
+    #[inline]
+    pub fn vertices(&self) -> [Vec3A; 3] {
+        [self.v0, self.v0 + self.e1, self.v0 + self.e2]
+    }
+
     /// Unnormalised geometric normal `e1 x e2` (length = twice the area).
     #[inline]
     pub fn normal_unnormalized(&self) -> Vec3A {
