@@ -102,17 +102,24 @@ enum Order {
     Morton,
 }
 
+/// `query` of every ray, one ray after another in the set's order, on all threads.
+fn in_given_order<T: Send>(
+    rays: &[Ray],
+    query: impl Fn(&mut TraversalStack, &Ray) -> T + Sync,
+) -> Vec<T> {
+    rays.par_iter()
+        .with_min_len(1024)
+        .map_init(TraversalStack::default, |stack, r| query(stack, r))
+        .collect()
+}
+
 /// Closest hits of `rays`, in their order. Not inlined, so that profilers can select it.
 #[inline(never)]
 fn cast_closest(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<Option<(u32, f32)>> {
     match order {
-        Order::Given => rays
-            .par_iter()
-            .with_min_len(1024)
-            .map_init(TraversalStack::default, |stack, r| {
-                scene.closest_hit(stack, r.origin, r.direction, r.t_max)
-            })
-            .collect(),
+        Order::Given => in_given_order(rays, |stack, r| {
+            scene.closest_hit(stack, r.origin, r.direction, r.t_max)
+        }),
         Order::Morton => scene.closest_hits(rays),
     }
 }
@@ -121,13 +128,9 @@ fn cast_closest(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<Option<(u3
 #[inline(never)]
 fn cast_occluded(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<bool> {
     match order {
-        Order::Given => rays
-            .par_iter()
-            .with_min_len(1024)
-            .map_init(TraversalStack::default, |stack, r| {
-                scene.occluded(stack, r.origin, r.direction, r.t_max)
-            })
-            .collect(),
+        Order::Given => in_given_order(rays, |stack, r| {
+            scene.occluded(stack, r.origin, r.direction, r.t_max)
+        }),
         Order::Morton => scene.occlusions(rays),
     }
 }

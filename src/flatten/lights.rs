@@ -519,7 +519,7 @@ impl LightTable {
 
     /// Four light samples as seen from `p`, and where they lie: lane `k` chooses a light
     /// with `uniforms[k].0` and a point on it with `uniforms[k].1` (area lights: uniform by
-    /// area).
+    /// area; a table whose only light is one triangle or parallelogram needs no choice).
     #[inline(always)]
     pub fn sample(
         &self,
