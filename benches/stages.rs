@@ -1,7 +1,9 @@
 //! Stage-level benchmarks: each wavefront stage, on one thread as the renderer runs it, on a
 //! fixed, seeded batch of 65,536 paths, in the seed room and in a heavy scene (the room plus a
 //! procedural mesh of over a million triangles), reported as rays (or paths) per second; plus
-//! the BVH build of the heavy scene. Names are `stage/scene`.
+//! the BVH build of the heavy scene. Names are `stage/scene`. The batch is run through each
+//! stage in sub-batches of the renderer's default size, whose buffers stay in cache as a
+//! render's do (the whole batch's shadow rays alone take 35 MB).
 
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
@@ -85,7 +87,10 @@ fn heavy_world() -> hecs::World {
     world
 }
 
-/// Buffers after generating camera rays for the first batch and shading their hits once.
+/// Paths per sub-batch: the renderer's default batch size.
+const SUB_BATCH: u32 = 4096;
+
+/// Buffers of one sub-batch after generating its camera rays and shading their hits once.
 struct Prepared {
     camera_rays: RayBatch,
     camera_hits: HitBatch,
@@ -96,8 +101,20 @@ struct Prepared {
     params: ShadeParams,
 }
 
-fn prepare(scene: &FlatScene) -> Prepared {
+/// The sub-batches of the whole batch, in pixel order.
+fn prepare(scene: &FlatScene) -> Vec<Prepared> {
     let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
+    (0..BATCH)
+        .step_by(SUB_BATCH as usize)
+        .map(|first| prepare_sub_batch(scene, &camera, first..first + SUB_BATCH))
+        .collect()
+}
+
+fn prepare_sub_batch(
+    scene: &FlatScene,
+    camera: &PinholeCamera,
+    pixels: std::ops::Range<u32>,
+) -> Prepared {
     let (mut paths, mut rays, mut hits, mut next) = (
         PathState::default(),
         RayBatch::default(),
@@ -108,14 +125,7 @@ fn prepare(scene: &FlatScene) -> Prepared {
         per_path: SHADOW_RAYS as usize,
         ..Default::default()
     };
-    generate_camera_rays(
-        &camera,
-        rng::DEFAULT_SEED,
-        0..BATCH,
-        0,
-        &mut paths,
-        &mut rays,
-    );
+    generate_camera_rays(camera, rng::DEFAULT_SEED, pixels, 0, &mut paths, &mut rays);
     intersect_closest(scene, &rays, &mut hits);
     let defaults = wavetrace::RenderSettings::default();
     let params = ShadeParams {
@@ -146,11 +156,19 @@ fn prepare(scene: &FlatScene) -> Prepared {
     }
 }
 
+/// Which rays of a sub-batch an intersect benchmark casts.
+type RaysOf = fn(&Prepared) -> &RayBatch;
+
+/// How many of something the sub-batches of `batch` have together.
+fn total(batch: &[Prepared], count: impl Fn(&Prepared) -> usize) -> u64 {
+    batch.iter().map(count).sum::<usize>() as u64
+}
+
 fn stages(c: &mut Criterion) {
     let room = flatten(&room_world(), Path::new("builtin:room")).unwrap();
     let heavy = flatten(&heavy_world(), Path::new("heavy")).unwrap();
     for (name, scene) in [("seed_room", &room), ("heavy", &heavy)] {
-        let p = prepare(scene);
+        let batch = prepare(scene);
         let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
 
         let mut g = c.benchmark_group("generate");
@@ -158,35 +176,44 @@ fn stages(c: &mut Criterion) {
         g.bench_function(name, |b| {
             let (mut paths, mut rays) = (PathState::default(), RayBatch::default());
             b.iter(|| {
-                generate_camera_rays(
-                    &camera,
-                    rng::DEFAULT_SEED,
-                    0..BATCH,
-                    0,
-                    &mut paths,
-                    &mut rays,
-                )
+                for first in (0..BATCH).step_by(SUB_BATCH as usize) {
+                    generate_camera_rays(
+                        &camera,
+                        rng::DEFAULT_SEED,
+                        first..first + SUB_BATCH,
+                        0,
+                        &mut paths,
+                        &mut rays,
+                    );
+                }
             })
         });
         g.finish();
 
         let mut g = c.benchmark_group("intersect");
         g.sample_size(20);
-        g.throughput(Throughput::Elements(p.camera_rays.len() as u64));
-        g.bench_function(format!("{name}_camera"), |b| {
-            let mut hits = HitBatch::default();
-            b.iter(|| intersect_closest(scene, &p.camera_rays, &mut hits))
-        });
-        g.throughput(Throughput::Elements(p.bounce_rays.len() as u64));
-        g.bench_function(format!("{name}_bounce"), |b| {
-            let mut hits = HitBatch::default();
-            b.iter(|| intersect_closest(scene, &p.bounce_rays, &mut hits))
-        });
+        let rays: [(&str, RaysOf); 2] = [
+            ("camera", |p| &p.camera_rays),
+            ("bounce", |p| &p.bounce_rays),
+        ];
+        for (kind, rays) in rays {
+            g.throughput(Throughput::Elements(total(&batch, |p| rays(p).len())));
+            g.bench_function(format!("{name}_{kind}"), |b| {
+                let mut hits = HitBatch::default();
+                b.iter(|| {
+                    for p in &batch {
+                        intersect_closest(scene, rays(p), &mut hits);
+                    }
+                })
+            });
+        }
         g.finish();
 
         let mut g = c.benchmark_group("shade");
         g.sample_size(20);
-        g.throughput(Throughput::Elements(p.camera_paths.len() as u64));
+        g.throughput(Throughput::Elements(total(&batch, |p| {
+            p.camera_paths.len()
+        })));
         g.bench_function(name, |b| {
             let (mut next, mut shadows) = (
                 RayBatch::default(),
@@ -196,17 +223,24 @@ fn stages(c: &mut Criterion) {
                 },
             );
             b.iter_batched_ref(
-                || p.camera_paths.clone(),
+                || {
+                    batch
+                        .iter()
+                        .map(|p| p.camera_paths.clone())
+                        .collect::<Vec<_>>()
+                },
                 |paths| {
-                    black_box(shade_hits(
-                        scene,
-                        p.params,
-                        &p.camera_rays,
-                        &p.camera_hits,
-                        paths,
-                        &mut next,
-                        &mut shadows,
-                    ))
+                    for (p, paths) in batch.iter().zip(paths) {
+                        black_box(shade_hits(
+                            scene,
+                            p.params,
+                            &p.camera_rays,
+                            &p.camera_hits,
+                            paths,
+                            &mut next,
+                            &mut shadows,
+                        ));
+                    }
                 },
                 BatchSize::LargeInput,
             )
@@ -215,12 +249,21 @@ fn stages(c: &mut Criterion) {
 
         let mut g = c.benchmark_group("shadow");
         g.sample_size(20);
-        let traced: u32 = p.shadows.count[..p.shadow_paths.len()].iter().sum();
-        g.throughput(Throughput::Elements(traced as u64));
+        let traced = |p: &Prepared| p.shadows.count[..p.shadow_paths.len()].iter().sum::<u32>();
+        g.throughput(Throughput::Elements(total(&batch, |p| traced(p) as usize)));
         g.bench_function(name, |b| {
             b.iter_batched_ref(
-                || p.shadow_paths.clone(),
-                |paths| black_box(trace_shadow_rays(scene, &p.shadows, paths)),
+                || {
+                    batch
+                        .iter()
+                        .map(|p| p.shadow_paths.clone())
+                        .collect::<Vec<_>>()
+                },
+                |paths| {
+                    for (p, paths) in batch.iter().zip(paths) {
+                        black_box(trace_shadow_rays(scene, &p.shadows, paths));
+                    }
+                },
                 BatchSize::LargeInput,
             )
         });
