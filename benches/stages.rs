@@ -101,13 +101,17 @@ struct Prepared {
     params: ShadeParams,
 }
 
+/// The pixels of each sub-batch, in order.
+fn sub_batch_pixels() -> impl Iterator<Item = std::ops::Range<u32>> {
+    (0..BATCH)
+        .step_by(SUB_BATCH as usize)
+        .map(|first| first..first + SUB_BATCH)
+}
+
 /// The sub-batches of the whole batch, in pixel order.
 fn prepare(scene: &FlatScene) -> Vec<Prepared> {
     let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
-    (0..BATCH)
-        .step_by(SUB_BATCH as usize)
-        .map(|first| prepare_sub_batch(scene, &camera, first..first + SUB_BATCH))
-        .collect()
+    (sub_batch_pixels().map(|pixels| prepare_sub_batch(scene, &camera, pixels))).collect()
 }
 
 fn prepare_sub_batch(
@@ -176,11 +180,11 @@ fn stages(c: &mut Criterion) {
         g.bench_function(name, |b| {
             let (mut paths, mut rays) = (PathState::default(), RayBatch::default());
             b.iter(|| {
-                for first in (0..BATCH).step_by(SUB_BATCH as usize) {
+                for pixels in sub_batch_pixels() {
                     generate_camera_rays(
                         &camera,
                         rng::DEFAULT_SEED,
-                        first..first + SUB_BATCH,
+                        pixels,
                         0,
                         &mut paths,
                         &mut rays,
