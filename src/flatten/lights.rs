@@ -263,13 +263,9 @@ const MAX_EMITTING_PLANES: usize = 8;
 /// so that no sample it skips could have had a positive cosine at the light.
 const BEHIND_MARGIN: f32 = 1e-4;
 
-/// The [`SingleLight`] of a table of area lights `lights` (with their `records`) and punctual
-/// lights `delta_lights`, if it has one.
-fn single_light(
-    lights: &[AreaLight],
-    records: &[[Vec4; 2]],
-    delta_lights: &[DeltaLight],
-) -> Option<SingleLight> {
+/// The [`SingleLight`] of a table of area lights `lights` and punctual lights `delta_lights`,
+/// if it has one.
+fn single_light(lights: &[AreaLight], delta_lights: &[DeltaLight]) -> Option<SingleLight> {
     if !delta_lights.is_empty() {
         return None;
     }
@@ -277,26 +273,22 @@ fn single_light(
         Shape::Triangle(t) => Some(t),
         Shape::Sphere(_) => None,
     };
-    // Splatted, by axis or channel.
+    // Splatted, by axis or channel; `source` gives the normal, radiance and sides.
     let lanes = |v: Vec3A| v.to_array().map(Vec4::splat);
-    let light = |corner, [e1, e2]: [Vec3A; 2], parallelogram, pdf_area| {
-        let [normal_pdf, radiance_sided] = records[0].map(|v| v.to_array().map(Vec4::splat));
-        let [normal @ .., _] = normal_pdf;
-        let [radiance @ .., two_sided] = radiance_sided;
-        SingleLight {
+    let light =
+        |source: &AreaLight, corner, [e1, e2]: [Vec3A; 2], parallelogram, pdf_area| SingleLight {
             corner: lanes(corner),
             edges: [lanes(e1), lanes(e2)],
             parallelogram,
-            normal,
+            normal: lanes(source.normal),
             pdf_area: Vec4::splat(pdf_area),
-            radiance,
-            two_sided,
-        }
-    };
+            radiance: source.radiance.to_array().map(Vec4::splat),
+            two_sided: Vec4::splat(if source.two_sided { 1.0 } else { 0.0 }),
+        };
     match lights {
         [only] => {
             let t = triangle(only)?;
-            Some(light(t.v0, [t.e1, t.e2], false, only.pdf_area))
+            Some(light(only, t.v0, [t.e1, t.e2], false, only.pdf_area))
         }
         [a, b] if a.radiance == b.radiance && a.two_sided == b.two_sided => {
             let (t, u) = (triangle(a)?, triangle(b)?);
@@ -304,7 +296,7 @@ fn single_light(
             // Same emitting side; the density is that of choosing a triangle by area and a
             // point on it uniformly: one over the whole area.
             let pdf_area = 1.0 / (a.area + b.area);
-            (a.normal.dot(b.normal) > 1.0 - 1e-6).then(|| light(corner, edges, true, pdf_area))
+            (a.normal.dot(b.normal) > 1.0 - 1e-6).then(|| light(a, corner, edges, true, pdf_area))
         }
         _ => None,
     }
@@ -472,7 +464,7 @@ impl LightTable {
         for (l, &p) in delta_lights.iter_mut().zip(&powers[lights.len()..]) {
             l.select_probability = probability(p);
         }
-        let records: Vec<[Vec4; 2]> = lights
+        let records = lights
             .iter()
             .map(|l| {
                 let two_sided = if l.two_sided { 1.0 } else { 0.0 };
@@ -480,7 +472,7 @@ impl LightTable {
             })
             .collect();
         LightTable {
-            single: single_light(&lights, &records, &delta_lights),
+            single: single_light(&lights, &delta_lights),
             records,
             emitting_planes: emitting_planes(&lights, &delta_lights),
             lights,
