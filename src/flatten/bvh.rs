@@ -9,7 +9,7 @@
 
 use super::leaf_prims::{closest_in_leaf, closest_in_node};
 use super::spheres::intersect_sphere;
-use super::triangles::{OriginTerms, intersect_triangle_from};
+use super::triangles::{OriginTerms, TriangleGeom, intersect_triangle_from};
 use super::{FlatScene, Shape};
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
@@ -761,6 +761,48 @@ impl<'a> Packet<'a> {
     }
 }
 
+impl Packet<'_> {
+    /// Whether every segment passes beside the triangle `tri` (`terms` from the packet's
+    /// origin): all far ends lie, by more than a bound on the rounding of the tests, outside
+    /// one of the three planes through the origin and an edge, where no ray from the origin
+    /// meets the triangle. Conservative: `false` when unsure.
+    ///
+    /// The planes' normals are those of the ray test's barycentrics: for a ray `d` that
+    /// reaches the plane (`t > 0`), `u`, `v` and `1 - u - v` have the signs of `d . ca`,
+    /// `d . ab` and `d . bc` times that of `ng . c`. Shadow packets from beside a triangle
+    /// pass the box tests and the plane test, and this one test spares their ray-by-ray
+    /// tests.
+    #[inline(always)]
+    pub fn passes_beside(&self, tri: &TriangleGeom, terms: &OriginTerms) -> bool {
+        let (a, e1, e2) = (terms.c, tri.e1, tri.e2);
+        let ab = a.cross(e1);
+        let ca = e2.cross(a);
+        let bc = terms.ng - ab - ca;
+        // Bounds on each normal's components (and so on their rounding): the sums of the
+        // products' magnitudes.
+        let abs_cross = |p: Vec3A, q: Vec3A| {
+            let (p, q) = (p.abs(), q.abs());
+            Vec3A::new(
+                p.y * q.z + p.z * q.y,
+                p.z * q.x + p.x * q.z,
+                p.x * q.y + p.y * q.x,
+            )
+        };
+        let (ab_bound, ca_bound) = (abs_cross(a, e1), abs_cross(e2, a));
+        let bc_bound = abs_cross(e1, e2) + ab_bound + ca_bound;
+        let reach = self.ends_center.abs() + self.ends_half;
+        let side = if terms.ng_dot_c > 0.0 { 1.0 } else { -1.0 };
+        let outside = |normal: Vec3A, bound: Vec3A| {
+            // The largest value of `side * normal . end` over the box of far ends.
+            let most = side * normal.dot(self.ends_center) + normal.abs().dot(self.ends_half);
+            most < -PLANE_TEST_TOLERANCE * bound.dot(reach)
+        };
+        // No side at all when the origin lies in the triangle's plane: never cull.
+        terms.ng_dot_c != 0.0
+            && (outside(ab, ab_bound) || outside(ca, ca_bound) || outside(bc, bc_bound))
+    }
+}
+
 /// Relative rounding bound of [`Packet::stays_on_one_side`]: a few dozen ulps of the sums
 /// it forms, far below the gaps it is meant for (shadow rays stop 1e-4 short of the light).
 const PLANE_TEST_TOLERANCE: f32 = 64.0 * f32::EPSILON;
@@ -998,8 +1040,10 @@ impl FlatScene {
             match &prims[slot as usize].shape() {
                 Shape::Triangle(tri) => {
                     let terms = OriginTerms::new(tri, origin);
-                    if packet.stays_on_one_side(terms.ng, terms.c) {
-                        return 0; // no segment reaches the triangle's plane
+                    if packet.stays_on_one_side(terms.ng, terms.c)
+                        || packet.passes_beside(tri, &terms)
+                    {
+                        return 0; // no segment reaches the triangle's plane, or it
                     }
                     while open != 0 {
                         let k = open.trailing_zeros() as usize;
@@ -1328,6 +1372,50 @@ mod tests {
             }
         }
         assert!(culled > 4000, "clear cases are culled: {culled}");
+    }
+
+    #[test]
+    fn edge_culling_never_drops_a_hit() {
+        // Random triangles and packets aimed across the plane at points near an edge, from
+        // 1e-6 to 1 inside or outside it: whenever the test culls a packet, the ray test
+        // must miss with every ray, and clear cases must be culled.
+        let mut culled = 0;
+        for i in 0..20000 {
+            let u = |d: u32| uniform(path_key(7, i, 0), 0, d);
+            let point = |d: u32| Vec3A::new(u(d), u(d + 1), u(d + 2)) * 20.0 - 10.0;
+            let tri = TriangleGeom::new(point(0), point(3), point(6));
+            let origin = point(9);
+            let vertices = tri.vertices();
+            let edge = (i % 3) as usize;
+            let (a, b) = (vertices[edge], vertices[(edge + 1) % 3]);
+            let inward = (vertices[(edge + 2) % 3] - a)
+                .reject_from(b - a)
+                .normalize();
+            let gap = 10f32.powf(-6.0 * u(12)) * if u(13) < 0.5 { -1.0 } else { 1.0 };
+            let target = a + u(14) * (b - a) + gap * inward;
+            let n = 1 + (i as usize % PACKET_SIZE);
+            let mut directions = [Vec3A::ZERO; PACKET_SIZE];
+            let mut t_max = [0.0; PACKET_SIZE];
+            for k in 0..n {
+                let v = |d: u32| uniform(path_key(8, i, k as u32), 0, d) - 0.5;
+                let spread = if i % 2 == 0 { 1e-4 } else { 0.1 };
+                let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
+                // Past the plane: the segments reach it, so only the edges decide.
+                (directions[k], t_max[k]) = (to.normalize(), 1.5 * to.length());
+            }
+            let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
+            let terms = OriginTerms::new(&tri, origin);
+            if !packet.passes_beside(&tri, &terms) {
+                continue;
+            }
+            culled += 1;
+            for k in 0..n {
+                let hit = intersect_triangle_from(&tri, &terms, directions[k], 0.0, t_max[k]);
+                assert!(hit.is_none(), "packet {i} ray {k} hits the culled triangle");
+            }
+        }
+        // About 10,000 packets aim outside; those whose spread is below their gap are clear.
+        assert!(culled > 3500, "clear cases are culled: {culled}");
     }
 
     #[test]

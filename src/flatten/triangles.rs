@@ -81,7 +81,7 @@ pub struct OriginTerms {
     /// `v0 - origin`.
     pub c: Vec3A,
     /// `ng . c`.
-    ng_dot_c: f32,
+    pub ng_dot_c: f32,
 }
 
 impl OriginTerms {
