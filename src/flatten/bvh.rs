@@ -1024,18 +1024,22 @@ impl FlatScene {
             })
     }
 
-    /// Occlusion of up to [`PACKET_SIZE`] segments from one origin: bit `k` is set when
-    /// segment `k` of the packet is blocked.
+    /// Occlusion of up to [`PACKET_SIZE`] shadow rays from one origin: bit `k` is set when
+    /// segment `k` of the packet is blocked. For segments between points of the scene (see
+    /// [`super::occluders`]): the triangles that bound the scene are left out.
     #[inline]
     pub fn occluded_packet(&self, stack: &mut TraversalStack, packet: &Packet) -> u32 {
-        let prims = &self.leaf_prims;
+        let (bvh, prims) = match &self.occluders {
+            Some(o) => (&o.bvh, &o.leaf_prims),
+            None => (&self.bvh, &self.leaf_prims),
+        };
         let Packet {
             origin,
             directions,
             t_max,
             ..
         } = *packet;
-        self.bvh.any_hit_packet(stack, packet, |slot, mut open| {
+        bvh.any_hit_packet(stack, packet, |slot, mut open| {
             let mut blocked = 0;
             match &prims[slot as usize].shape() {
                 Shape::Triangle(tri) => {

@@ -3,13 +3,15 @@
 //! [`flatten`] validates the world once and turns it into an immutable [`FlatScene`]:
 //! world-space primitives in BVH order (so the BVH's slots index every per-primitive column
 //! directly, with no indirection), a material table with its textures, a light table (area
-//! and punctual lights) and one BVH over all primitives. The renderer's hot loops then assume
-//! valid data.
+//! and punctual lights), one BVH over all primitives, and, when some triangles bound the
+//! scene, a second over the primitives that can block shadow rays ([`occluders`]). The
+//! renderer's hot loops then assume valid data.
 
 pub mod bvh;
 pub mod leaf_prims;
 pub mod lights;
 pub mod materials;
+pub mod occluders;
 pub mod ray_batches;
 pub mod spheres;
 pub mod triangles;
@@ -83,6 +85,9 @@ pub struct FlatScene {
     pub textured_emission: Vec<Option<TexturedEmission>>,
     /// The BVH over the primitives (slot `i` is `leaf_prims[i]`).
     pub bvh: bvh::Bvh4,
+    /// The primitives that can block a shadow ray and their own tree, when some triangles
+    /// bound the scene and cannot (see [`occluders`]); `None`: all of them can.
+    pub occluders: Option<occluders::Occluders>,
     /// Per slot, the index of the primitive in flattening order (meshes in query order, their
     /// triangles in index order, then spheres), to map hits back to the input.
     pub source_index: Vec<u32>,
@@ -369,6 +374,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
         }
     }
+    let occluders = occluders::occluders(&columns.shapes, &delta_lights);
     let mut lights = LightTable::new(area_lights, delta_lights);
     let textured_emission = if textured_emission.iter().any(Option::is_some) {
         lights.locate_samples_on_triangles();
@@ -413,6 +419,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
         lights,
         textured_emission,
         bvh,
+        occluders,
         source_index: order,
         camera,
         warnings,
