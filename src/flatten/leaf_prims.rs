@@ -348,9 +348,10 @@ pub const MAX_FLAT_PRIMITIVES: usize = 48;
 /// tests and the branches per node that incoherent rays mispredict.
 #[derive(Clone, Debug)]
 pub struct FlatPrimitives {
-    /// Four triangles and their slots; lanes past the last triangle hold
-    /// [`LeafPrim::NONE`] and no slot.
-    triangles: Vec<(TriangleLanes, [u32; 4])>,
+    /// Four triangles and their slots (as floats, exact below 2^24, so that they ride in the
+    /// same selects as the distances); lanes past the last triangle hold [`LeafPrim::NONE`],
+    /// which no ray hits.
+    triangles: Vec<(TriangleLanes, Vec4)>,
     /// The spheres and their slots.
     spheres: Vec<(SphereGeom, u32)>,
 }
@@ -365,7 +366,7 @@ impl FlatPrimitives {
         let (spheres, triangles): (Vec<u32>, Vec<u32>) =
             (0..prims.len() as u32).partition(|&slot| prims[slot as usize].a.w == SPHERE_TAG);
         let group = |slots: &[u32]| {
-            let slot = |k: usize| slots.get(k).copied().unwrap_or(u32::MAX);
+            let slot = |k: usize| slots.get(k).map_or(f32::INFINITY, |&s| s as f32);
             let prim = |k: usize| {
                 slots
                     .get(k)
@@ -373,7 +374,7 @@ impl FlatPrimitives {
             };
             (
                 TriangleLanes::new([prim(0), prim(1), prim(2), prim(3)]),
-                [slot(0), slot(1), slot(2), slot(3)],
+                Vec4::new(slot(0), slot(1), slot(2), slot(3)),
             )
         };
         Some(FlatPrimitives {
@@ -389,25 +390,22 @@ impl FlatPrimitives {
     /// close primitives, the triangle of the lowest slot wins, and triangles win over spheres.
     #[inline(always)]
     pub fn closest_hit(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> Option<(u32, f32)> {
-        // Every group's distances first, then the nearest of all: a group's test does not
-        // wait for the nearest hit of the groups before it.
-        let mut distances = [Vec4::INFINITY; MAX_FLAT_PRIMITIVES.div_ceil(4)];
-        let mut nearest_by_lane = Vec4::INFINITY;
-        for ((lanes, _), t) in self.triangles.iter().zip(&mut distances) {
-            *t = lanes.hit_distances(BVec4A::splat(true), origin, direction, t_max);
-            nearest_by_lane = nearest_by_lane.min(*t);
+        // Per lane, the nearest distance so far and its slot: a strict `<` keeps the earlier
+        // (lower) slot of equally close triangles, and the lowest slot of the lanes at the
+        // nearest distance wins, as if the triangles were tested one by one in slot order.
+        let (mut nearest, mut nearest_slot) = (Vec4::INFINITY, Vec4::INFINITY);
+        for (lanes, slots) in &self.triangles {
+            let t = lanes.hit_distances(BVec4A::splat(true), origin, direction, t_max);
+            let closer = t.cmplt(nearest);
+            nearest = Vec4::select(closer, t, nearest);
+            nearest_slot = Vec4::select(closer, *slots, nearest_slot);
         }
-        let nearest = Vec4::splat(nearest_by_lane.min_element());
-        // The first group holding the nearest distance, found without a branch per group.
-        let distances = &distances[..self.triangles.len()];
-        let groups = (distances.iter().enumerate()).fold(0u32, |bits, (g, t)| {
-            bits | u32::from(t.cmpeq(nearest).any()) << g
-        });
+        let t = nearest.min_element();
         let mut best = (u32::MAX, t_max);
-        if nearest.x < t_max {
-            let g = groups.trailing_zeros() as usize;
-            let lane = distances[g].cmpeq(nearest).bitmask().trailing_zeros();
-            best = (self.triangles[g].1[lane as usize], nearest.x);
+        if t < t_max {
+            let at_nearest = nearest.cmpeq(Vec4::splat(t));
+            let slot = Vec4::select(at_nearest, nearest_slot, Vec4::INFINITY).min_element();
+            best = (slot as u32, t);
         }
         // Inlined (unlike the leaf test's sphere test): every ray meets every sphere here.
         for (sphere, slot) in &self.spheres {
