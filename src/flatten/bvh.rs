@@ -1047,7 +1047,7 @@ impl FlatScene {
                     if packet.stays_on_one_side(terms.ng, terms.c)
                         || packet.passes_beside(tri, &terms)
                     {
-                        return 0; // no segment reaches the triangle's plane, or it
+                        return 0; // no segment reaches the plane, or every one passes beside
                     }
                     while open != 0 {
                         let k = open.trailing_zeros() as usize;

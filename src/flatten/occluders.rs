@@ -5,6 +5,9 @@
 //! ceiling of a convex room. No such segment crosses its plane, so it never blocks one, and the
 //! shadow stage traces a tree over the other primitives only. In the seed room that leaves
 //! the tetrahedron and the two spheres: one node instead of about four per shadow packet.
+//! (An origin pushed off its surface may lie behind such a plane by that rounding bound; the
+//! plane does not block a ray from there, as the full tree's test might: a band as wide as
+//! the rounding, which no image can show.)
 
 use super::Shape;
 use super::bvh::{Bvh4, build_bvh};
@@ -12,8 +15,8 @@ use super::leaf_prims::LeafPrim;
 use super::lights::{DeltaKind, DeltaLight};
 use glam::DVec3;
 
-/// Scenes are checked only while triangles x points stays below this (about 10 ms): every
-/// triangle's plane against every point of the scene.
+/// Scenes are checked only while triangles x points stays below this, a bound on the check's
+/// time: it tests every triangle's plane against every point of the scene.
 const MAX_CHECKS: usize = 1 << 24;
 
 /// How far (relative to the coordinates' magnitude) a point may lie behind a plane and still
