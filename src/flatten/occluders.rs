@@ -14,6 +14,7 @@ use super::bvh::{Bvh4, build_bvh};
 use super::leaf_prims::LeafPrim;
 use super::lights::{DeltaKind, DeltaLight};
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Scenes are checked only while triangles x points stays below this, a bound on the check's
 /// time: it tests every triangle's plane against every point of the scene.
@@ -48,7 +49,7 @@ pub fn occluders(shapes: &[Shape], delta_lights: &[DeltaLight]) -> Option<Occlud
     let extent = points.iter().fold(0.0, |e: f64, p| {
         e.max(p.position.abs().max_element() + p.radius)
     });
-    let rest: Vec<Shape> = (shapes.iter())
+    let rest: Vec<Shape> = (shapes.par_iter())
         .filter(|shape| !bounds_the_scene(shape, &points, extent))
         .copied()
         .collect();
