@@ -759,9 +759,7 @@ impl<'a> Packet<'a> {
         (at_origin > margin && at_ends - spread > margin)
             || (at_origin < -margin && at_ends + spread < -margin)
     }
-}
 
-impl Packet<'_> {
     /// Whether every segment passes beside the triangle `tri` (`terms` from the packet's
     /// origin): all far ends lie, by more than a bound on the rounding of the tests, outside
     /// one of the three planes through the origin and an edge, where no ray from the origin
@@ -1299,6 +1297,29 @@ mod tests {
         }
     }
 
+    /// The segments of test packet `i`: `1 + i % PACKET_SIZE` of them from `origin` toward
+    /// points scattered up to `spread / 2` per axis around `target` (random stream `stream`),
+    /// each `reach` times as long as the way to its point. Returns the directions, the
+    /// lengths and how many there are.
+    fn segments_toward(
+        stream: u64,
+        i: u32,
+        origin: Vec3A,
+        target: Vec3A,
+        spread: f32,
+        reach: f32,
+    ) -> ([Vec3A; PACKET_SIZE], [f32; PACKET_SIZE], usize) {
+        let n = 1 + (i as usize % PACKET_SIZE);
+        let mut directions = [Vec3A::ZERO; PACKET_SIZE];
+        let mut t_max = [0.0; PACKET_SIZE];
+        for k in 0..n {
+            let v = |d: u32| uniform(path_key(stream, i, k as u32), 0, d) - 0.5;
+            let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
+            (directions[k], t_max[k]) = (to.normalize(), reach * to.length());
+        }
+        (directions, t_max, n)
+    }
+
     fn packets_agree_in(shapes: &[Shape], bvh: &Bvh4) {
         let mut stack = TraversalStack::default();
         for i in 0..400 {
@@ -1308,14 +1329,7 @@ mod tests {
             // packets are spread wide enough to mix direction signs.
             let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
             let spread = if i % 3 == 0 { 8.0 } else { 0.5 };
-            let n = 1 + (i as usize % PACKET_SIZE);
-            let mut directions = [Vec3A::ZERO; PACKET_SIZE];
-            let mut t_max = [0.0; PACKET_SIZE];
-            for k in 0..n {
-                let v = |d: u32| uniform(path_key(4, i, k as u32), 0, d) - 0.5;
-                let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
-                (directions[k], t_max[k]) = (to.normalize(), to.length());
-            }
+            let (directions, t_max, n) = segments_toward(4, i, origin, target, spread, 1.0);
             let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
             let occluded = bvh.any_hit_packet(&mut stack, &packet, |s, open| {
                 (0..n)
@@ -1351,15 +1365,8 @@ mod tests {
             let target = on_plane
                 + Vec3A::new(u(9) - 0.5, u(10) - 0.5, u(11) - 0.5) * 1e-3
                 + gap * normal.normalize();
-            let n = 1 + (i as usize % PACKET_SIZE);
-            let mut directions = [Vec3A::ZERO; PACKET_SIZE];
-            let mut t_max = [0.0; PACKET_SIZE];
-            for k in 0..n {
-                let v = |d: u32| uniform(path_key(6, i, k as u32), 0, d) - 0.5;
-                let spread = if i % 2 == 0 { 1e-3 } else { 0.1 };
-                let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
-                (directions[k], t_max[k]) = (to.normalize(), to.length());
-            }
+            let spread = if i % 2 == 0 { 1e-3 } else { 0.1 };
+            let (directions, t_max, n) = segments_toward(6, i, origin, target, spread, 1.0);
             let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
             if !packet.stays_on_one_side(normal, on_plane - origin) {
                 continue;
@@ -1397,16 +1404,9 @@ mod tests {
                 .normalize();
             let gap = 10f32.powf(-6.0 * u(12)) * if u(13) < 0.5 { -1.0 } else { 1.0 };
             let target = a + u(14) * (b - a) + gap * inward;
-            let n = 1 + (i as usize % PACKET_SIZE);
-            let mut directions = [Vec3A::ZERO; PACKET_SIZE];
-            let mut t_max = [0.0; PACKET_SIZE];
-            for k in 0..n {
-                let v = |d: u32| uniform(path_key(8, i, k as u32), 0, d) - 0.5;
-                let spread = if i % 2 == 0 { 1e-4 } else { 0.1 };
-                let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
-                // Past the plane: the segments reach it, so only the edges decide.
-                (directions[k], t_max[k]) = (to.normalize(), 1.5 * to.length());
-            }
+            let spread = if i % 2 == 0 { 1e-4 } else { 0.1 };
+            // Past the plane: the segments reach it, so only the edges decide.
+            let (directions, t_max, n) = segments_toward(8, i, origin, target, spread, 1.5);
             let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
             let terms = OriginTerms::new(&tri, origin);
             if !packet.passes_beside(&tri, &terms) {
