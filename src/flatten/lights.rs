@@ -148,6 +148,29 @@ pub struct LightSamples {
     pub pdf_solid_angle: Vec4,
 }
 
+/// The uniform numbers of four light samples, lane `k` of each vector being sample `k`'s: one
+/// to choose the light, two for the point on it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LightUniforms {
+    /// The choice of the light, by power.
+    pub pick: Vec4,
+    /// The point on the light, by coordinate.
+    pub point: [Vec4; 2],
+}
+
+impl LightUniforms {
+    /// Lane `k` from `lanes[k]`: (light choice, point).
+    pub fn from_lanes(lanes: [(f32, Vec2); LIGHT_LANES]) -> Self {
+        LightUniforms {
+            pick: Vec4::from_array(lanes.map(|l| l.0)),
+            point: [
+                Vec4::from_array(lanes.map(|l| l.1.x)),
+                Vec4::from_array(lanes.map(|l| l.1.y)),
+            ],
+        }
+    }
+}
+
 /// Where four light samples lie, for emission textures only. Apart from [`LightSamples`]:
 /// the light indices are made lane by lane, so copying them along with the samples reads
 /// four scalar stores back as one vector, which stalls (7% of the shade stage).
@@ -510,22 +533,19 @@ impl LightTable {
     }
 
     /// Four light samples as seen from `p`, and where they lie: lane `k` chooses a light
-    /// with `uniforms[k].0` and a point on it with `uniforms[k].1` (area lights: uniform by
-    /// area; a table whose only light is one triangle or parallelogram needs no choice).
+    /// with lane `k` of `uniforms.pick` and a point on it with lane `k` of `uniforms.point`
+    /// (area lights: uniform by area; a table whose only light is one triangle or
+    /// parallelogram needs no choice).
     #[inline(always)]
-    pub fn sample(
-        &self,
-        p: Vec3A,
-        uniforms: &[(f32, Vec2); LIGHT_LANES],
-    ) -> (LightSamples, LightPoints) {
-        let lane_vector = |f: fn(&(f32, Vec2)) -> f32| Vec4::from_array(uniforms.each_ref().map(f));
-        let u = [lane_vector(|u| u.1.x), lane_vector(|u| u.1.y)];
+    pub fn sample(&self, p: Vec3A, uniforms: &LightUniforms) -> (LightSamples, LightPoints) {
+        let u = uniforms.point;
         if let Some(light) = &self.single {
             return light.sample(p, u);
         }
         let barycentric = sample_triangle(u);
         let (b1, b2) = (barycentric[0].to_array(), barycentric[1].to_array());
-        let index = uniforms.map(|(u_pick, _)| sample_discrete(&self.power_cdf, u_pick));
+        let index =
+            (uniforms.pick.to_array()).map(|u_pick| sample_discrete(&self.power_cdf, u_pick));
         // Each lane's point and its light's `[normal, pdf_area]` and `[radiance, two_sided]`
         // records. A punctual lane computes harmless garbage below and is overwritten after.
         let lane = |k: usize| {
@@ -540,7 +560,7 @@ impl LightTable {
                     radiance_sided,
                 ],
                 Shape::Sphere(s) => {
-                    let n = sample_uniform_sphere(uniforms[k].1);
+                    let n = sample_uniform_sphere(Vec2::new(u[0][k], u[1][k]));
                     [
                         (s.center + s.radius * n).extend(0.0),
                         n.extend(normal_pdf.w),
@@ -672,7 +692,7 @@ mod tests {
 
     /// One light sample seen from `p`: its point, direction, distance and weight.
     fn sample_one(table: &LightTable, p: Vec3A, u_pick: f32, u: Vec2) -> (Vec3A, Vec3A, f32, Rgb) {
-        let (s, _) = table.sample(p, &[(u_pick, u); LIGHT_LANES]);
+        let (s, _) = table.sample(p, &LightUniforms::from_lanes([(u_pick, u); LIGHT_LANES]));
         let wi = Vec3A::from_array(s.wi.map(|axis| axis.x));
         let radiance = Rgb::from_array(s.radiance.map(|channel| channel.x));
         (
@@ -740,7 +760,7 @@ mod tests {
                     let d = 10 + 3 * (4 * group + k as u32);
                     (u(d), Vec2::new(u(d + 1), u(d + 2)))
                 });
-                let (samples, _) = table.sample(p, &uniforms);
+                let (samples, _) = table.sample(p, &LightUniforms::from_lanes(uniforms));
                 assert_eq!(samples.scale, Vec4::ZERO, "{p}");
             }
         }
@@ -783,9 +803,10 @@ mod tests {
                     Vec2::new(u(3 * k as u32 + 1), u(3 * k as u32 + 2)),
                 )
             });
-            let (group, group_points) = table.sample(p, &uniforms);
+            let (group, group_points) = table.sample(p, &LightUniforms::from_lanes(uniforms));
             for (k, &one) in uniforms.iter().enumerate() {
-                let (alone, alone_points) = table.sample(p, &[one; LIGHT_LANES]);
+                let (alone, alone_points) =
+                    table.sample(p, &LightUniforms::from_lanes([one; LIGHT_LANES]));
                 let lane = |s: &LightSamples| {
                     let mut values = s.wi.map(|v| v[k]).to_vec();
                     values.extend(s.radiance.map(|v| v[k]));
@@ -823,7 +844,7 @@ mod tests {
             // The choice among lights from a Kronecker sequence, independent of the grid.
             let pick = (i as f32 * 0.618_034).fract();
             let uniforms = [(pick, Vec2::new(u(i % n), u(i / n))); LIGHT_LANES];
-            let (s, _) = table.sample(p, &uniforms);
+            let (s, _) = table.sample(p, &LightUniforms::from_lanes(uniforms));
             let cos = s.wi[2].x.max(0.0);
             sum += Rgb::from_array(s.radiance.map(|c| c.x)) * s.scale.x * cos;
         }
@@ -893,8 +914,8 @@ mod tests {
                     .collect::<Vec<_>>()
             };
             assert_eq!(
-                bits(one.sample(p, &uniforms).0),
-                bits(lanes.sample(p, &uniforms).0)
+                bits(one.sample(p, &LightUniforms::from_lanes(uniforms)).0),
+                bits(lanes.sample(p, &LightUniforms::from_lanes(uniforms)).0)
             );
         }
     }

@@ -11,8 +11,9 @@ pub const DEFAULT_SEED: u64 = 0x5EED_2026;
 
 /// Random-number dimensions used within one bounce of a path.
 ///
-/// Shadow ray `j` of a bounce uses dimension `SHADOW_FIRST + j`, one hash split into its
-/// three numbers (see [`uniform3_salted`]), so any number of shadow rays fits without overlapping.
+/// The shadow rays of a bounce take the points of one lattice, shifted by the three numbers
+/// of dimension `LIGHT_SAMPLES` (see [`super::sampling::Rank1Lattice`]), so any number of
+/// shadow rays costs one hash.
 pub mod dim {
     /// Pixel jitter of the camera ray (2 numbers, bounce 0 only).
     pub const PIXEL_JITTER: u32 = 0;
@@ -22,9 +23,9 @@ pub mod dim {
     pub const BSDF_DIRECTION: u32 = 3;
     /// Russian roulette.
     pub const ROULETTE: u32 = 5;
-    /// Dimension of the first shadow ray (light choice and point on the light, 3 numbers from
-    /// one hash); shadow ray `j` uses `SHADOW_FIRST + j`.
-    pub const SHADOW_FIRST: u32 = 6;
+    /// The shift of the shadow rays' lattice (light choice and point on the light, 3 numbers
+    /// from one hash).
+    pub const LIGHT_SAMPLES: u32 = 6;
 }
 
 /// SplitMix64's finaliser: a bijective 64-bit mixer with full avalanche.
@@ -46,15 +47,7 @@ pub fn path_key(seed: u64, pixel: u32, sample_index: u32) -> u64 {
 /// 64 random bits for `dimension` of `bounce` of the path with key `key`.
 #[inline]
 fn bits(key: u64, bounce: u32, dimension: u32) -> u64 {
-    mix64(key ^ dimension_salt(bounce, dimension))
-}
-
-/// The half of the hash that depends only on (`bounce`, `dimension`), the same for every
-/// path: a stage that draws one dimension for many paths computes it once (see
-/// [`uniform3_salted`]).
-#[inline]
-pub fn dimension_salt(bounce: u32, dimension: u32) -> u64 {
-    mix64((bounce as u64) << 32 | dimension as u64)
+    mix64(key ^ mix64((bounce as u64) << 32 | dimension as u64))
 }
 
 /// The `width` bits of `h` starting at bit `shift`, as a number in [0, 1): every value is
@@ -70,13 +63,11 @@ pub fn uniform(key: u64, bounce: u32, dimension: u32) -> f32 {
     unit_float(bits(key, bounce, dimension), 40, 24)
 }
 
-/// Three uniform numbers from the one hash of a dimension (given by its salt, see
-/// [`dimension_salt`]), for a light sample: the first (which light) with 24 bits, the other
-/// two (where on it) with 20 bits each. One hash instead of three matters: every hit takes N
-/// of them.
+/// Three uniform numbers from the one hash of `dimension` of `bounce`, for light samples:
+/// the first (which light) with 24 bits, the other two (where on it) with 20 bits each.
 #[inline]
-pub fn uniform3_salted(key: u64, salt: u64) -> (f32, Vec2) {
-    let h = mix64(key ^ salt);
+pub fn uniform3(key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
+    let h = bits(key, bounce, dimension);
     (
         unit_float(h, 40, 24),
         Vec2::new(unit_float(h, 20, 20), unit_float(h, 0, 20)),

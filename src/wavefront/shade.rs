@@ -3,11 +3,12 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::surface;
-use crate::flatten::lights::{LIGHT_LANES, LightSamples};
+use crate::flatten::lights::{LIGHT_LANES, LightSamples, LightUniforms};
 use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
+use crate::math::sampling::{Rank1Lattice, shifted_mod_one};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin, transpose4};
 use crate::settings::MAX_SHADOW_RAYS;
 
@@ -16,6 +17,8 @@ use crate::settings::MAX_SHADOW_RAYS;
 const MAX_SURVIVAL: f32 = 0.95;
 /// Groups of light samples taken before any of them is shaded (see `shade_one`).
 const GROUPS_PER_PASS: usize = 4;
+/// Groups of four shadow rays a hit takes at most.
+const MAX_SHADOW_GROUPS: usize = (MAX_SHADOW_RAYS as usize).div_ceil(LIGHT_LANES);
 /// Shadow rays stop this fraction short of the light point, so the light itself never occludes.
 const SHADOW_RAY_SHORTENING: f32 = 1e-4;
 
@@ -49,11 +52,20 @@ pub fn shade_hits(
     next_rays.resize(n);
     shadows.grow_to(n);
     let per = shadows.per_path;
-    // Shadow ray j of this bounce draws dimension SHADOW_FIRST + j on every path.
-    let mut salts = [0; MAX_SHADOW_RAYS as usize];
-    let salts = &mut salts[..params.shadow_rays as usize];
-    for (j, salt) in salts.iter_mut().enumerate() {
-        *salt = rng::dimension_salt(params.bounce, dim::SHADOW_FIRST + j as u32);
+    // The shadow rays of a hit take the points of one lattice, four lanes to a group (lanes
+    // past the last ray repeat it), shifted per path.
+    let mut lattice = [LightUniforms::default(); MAX_SHADOW_GROUPS];
+    let lattice = &mut lattice[..(params.shadow_rays as usize).div_ceil(LIGHT_LANES)];
+    if !lattice.is_empty() {
+        let points = Rank1Lattice::new(params.shadow_rays);
+        let last = params.shadow_rays - 1;
+        for (g, group) in lattice.iter_mut().enumerate() {
+            let point = |k: usize| points.point(((g * LIGHT_LANES + k) as u32).min(last));
+            *group = LightUniforms::from_lanes(std::array::from_fn(|k| {
+                let [pick, u, v] = point(k);
+                (pick, Vec2::new(u, v))
+            }));
+        }
     }
     let mut samples = [LightSamples::default(); GROUPS_PER_PASS];
     let mut capped = 0;
@@ -76,7 +88,7 @@ pub fn shade_hits(
         };
         let chunk = i * per..(i + 1) * per;
         let next_event = NextEvent {
-            salts,
+            lattice,
             samples: &mut samples,
             shadow: ShadowView {
                 count: &mut shadows.count[i],
@@ -118,10 +130,10 @@ struct PathView<'a> {
     next_direction: &'a mut Vec3A,
 }
 
-/// What next-event estimation at one hit works with: the random-number salts of the shadow
-/// rays and the path's chunk of the shadow batch.
+/// What next-event estimation at one hit works with: the lattice of the shadow rays' light
+/// samples (one group per four rays) and the path's chunk of the shadow batch.
 struct NextEvent<'a> {
-    salts: &'a [u64],
+    lattice: &'a [LightUniforms],
     samples: &'a mut [LightSamples; GROUPS_PER_PASS],
     shadow: ShadowView<'a>,
 }
@@ -145,7 +157,7 @@ fn shade_one(
     next_event: NextEvent,
 ) -> bool {
     let NextEvent {
-        salts,
+        lattice,
         samples,
         shadow,
     } = next_event;
@@ -221,27 +233,32 @@ fn shade_one(
         let origin = offset_ray_origin(p, p_error, ng, front_normal);
         *shadow.origin = origin;
         // Behind every light (a ceiling above a ceiling light) all samples would be zero.
-        let samples_needed = if scene.lights.all_behind(origin) {
+        let groups_needed = if scene.lights.all_behind(origin) {
             0
         } else {
-            salts.len()
+            lattice.len()
         };
+        // The lattice's shift for this path: one hash for all its shadow rays.
+        let (shift_pick, shift_point) = rng::uniform3(key, bounce, dim::LIGHT_SAMPLES);
         // The shading frame and the side the shadow rays leave from, one vector per
         // coordinate, for the lanes.
         let [s, t, n, side] =
             [frame.s, frame.t, frame.n, front_normal].map(|v| v.to_array().map(Vec4::splat));
         let throughput = path.throughput.to_array().map(Vec4::splat);
         let mut count = 0;
-        for pass in salts[..samples_needed].chunks(LIGHT_LANES * GROUPS_PER_PASS) {
+        let rays = params.shadow_rays as usize;
+        for (p, pass) in lattice[..groups_needed].chunks(GROUPS_PER_PASS).enumerate() {
             // First every group's light samples, then their shading: each group's chain of
             // square root and divisions is long, and the chains of a pass overlap only if no
             // shading code sits between them.
-            let groups = pass.chunks(LIGHT_LANES);
-            for (group, samples) in groups.clone().zip(samples.iter_mut()) {
-                let lanes = group.len();
-                // Lanes past the group repeat its last sample; they are never kept.
-                let uniform = |k: usize| rng::uniform3_salted(key, group[k.min(lanes - 1)]);
-                let uniforms = [uniform(0), uniform(1), uniform(2), uniform(3)];
+            for (group, samples) in pass.iter().zip(samples.iter_mut()) {
+                let uniforms = LightUniforms {
+                    pick: shifted_mod_one(group.pick, shift_pick),
+                    point: [
+                        shifted_mod_one(group.point[0], shift_point.x),
+                        shifted_mod_one(group.point[1], shift_point.y),
+                    ],
+                };
                 // Sampled from the offset origin, so the direction and length serve the
                 // shadow ray as they are (the offset is a rounding-error bound: it moves the
                 // estimate by nothing measurable).
@@ -250,8 +267,10 @@ fn shade_one(
                     scene.lights.sample(origin, &uniforms),
                 ));
             }
-            for (group, samples) in groups.zip(samples.iter()) {
-                let lanes = group.len();
+            for (g, samples) in samples.iter().take(pass.len()).enumerate() {
+                // Lanes past the last ray repeat it; they are never kept.
+                let first = (p * GROUPS_PER_PASS + g) * LIGHT_LANES;
+                let lanes = (rays - first).min(LIGHT_LANES);
                 let [wi_x, wi_y, wi_z] = samples.wi;
                 let dot = |v: [Vec4; 3]| wi_x * v[0] + wi_y * v[1] + wi_z * v[2];
                 let wi_local = [dot(s), dot(t), dot(n)];
