@@ -130,7 +130,7 @@ impl Rank1Lattice {
     /// Point `j` (taken modulo `n`).
     pub fn point(&self, j: u32) -> [f32; 3] {
         let n = u64::from(self.n);
-        // `i / n` for `i < n <= MAX` rounds to below 1 in `f32`.
+        // `i / n` for `i < n` rounds to below 1 in `f32` (for `n` below 2^24).
         self.generators
             .map(|g| ((u64::from(j) * u64::from(g)) % n) as f32 / self.n as f32)
     }
@@ -167,21 +167,63 @@ mod tests {
                 assert_eq!(strata, (0..n).collect::<Vec<_>>(), "n {n}, dimension {d}");
             }
         }
-        // The two point coordinates are not the same lattice line: no two points of the 15 of
-        // the seed's setting lie closer than a third of the grid spacing `1 / sqrt(15)`.
-        let lattice = Rank1Lattice::new(15);
-        let points: Vec<Vec2> = (0..15)
-            .map(|j| {
-                let [_, u, v] = lattice.point(j);
-                Vec2::new(u, v)
-            })
-            .collect();
-        for (i, a) in points.iter().enumerate() {
-            for b in &points[i + 1..] {
-                let d = (*a - *b).abs();
-                let torus = d.min(Vec2::ONE - d);
-                assert!(torus.length() > 0.33 / 15f32.sqrt(), "{a} {b}");
+    }
+
+    #[test]
+    fn lattice_points_spread_over_the_square() {
+        // The two coordinates of a point on a light: no two points closer (on the torus) than
+        // half the spacing `1 / sqrt(n)` of a square grid of as many points. A lattice along
+        // the diagonal (generator 1) has them `sqrt(2) / n` apart and fails from n = 9 on.
+        for n in [7, 8, 15, 16, 32, 64, 100, 1024] {
+            let lattice = Rank1Lattice::new(n);
+            let points: Vec<Vec2> = (0..n)
+                .map(|j| {
+                    let [_, u, v] = lattice.point(j);
+                    Vec2::new(u, v)
+                })
+                .collect();
+            for (i, a) in points.iter().enumerate() {
+                for b in &points[i + 1..] {
+                    let d = (*a - *b).abs();
+                    let torus = d.min(Vec2::ONE - d);
+                    assert!(torus.length() > 0.5 / (n as f32).sqrt(), "n {n}: {a} {b}");
+                }
             }
+        }
+    }
+
+    #[test]
+    fn shifted_lattices_integrate_without_bias() {
+        // The mean of a lattice's points under random shifts is the integral (here of
+        // x + y^2 z over the cube: 1/2 + 1/6), as for independent points; unshifted, a
+        // lattice always gives the same, wrong, sum (0.516 for 4 points).
+        for n in [1, 4, 15] {
+            let lattice = Rank1Lattice::new(n);
+            let shifts = 20_000;
+            let (mut sum, mut sum2) = (0.0f64, 0.0f64);
+            for i in 0..shifts {
+                let u =
+                    |d: u32| crate::math::rng::uniform(crate::math::rng::path_key(5, i, 0), 0, d);
+                let mut estimate = 0.0;
+                for j in 0..n {
+                    let [a, b, c] = lattice.point(j).map(|x| Vec4::splat(x));
+                    let (x, y, z) = (
+                        shifted_mod_one(a, u(0)).x as f64,
+                        shifted_mod_one(b, u(1)).x as f64,
+                        shifted_mod_one(c, u(2)).x as f64,
+                    );
+                    estimate += (y * y * z + x) / n as f64;
+                }
+                sum += estimate;
+                sum2 += estimate * estimate;
+            }
+            let mean = sum / shifts as f64;
+            let error = ((sum2 / shifts as f64 - mean * mean) / shifts as f64).sqrt();
+            let exact = 1.0 / 6.0 + 0.5;
+            assert!(
+                (mean - exact).abs() < 4.0 * error + 1e-6,
+                "n {n}: {mean} +- {error}"
+            );
         }
     }
 
