@@ -206,7 +206,7 @@ mod tests {
                     |d: u32| crate::math::rng::uniform(crate::math::rng::path_key(5, i, 0), 0, d);
                 let mut estimate = 0.0;
                 for j in 0..n {
-                    let [a, b, c] = lattice.point(j).map(|x| Vec4::splat(x));
+                    let [a, b, c] = lattice.point(j).map(Vec4::splat);
                     let (x, y, z) = (
                         shifted_mod_one(a, u(0)).x as f64,
                         shifted_mod_one(b, u(1)).x as f64,
