@@ -4,7 +4,9 @@
 
 use super::Shape;
 use super::triangles::TriangleGeom;
-use crate::math::sampling::{sample_discrete, sample_triangle, sample_uniform_sphere};
+use crate::math::sampling::{
+    sample_discrete, sample_triangle, sample_uniform_sphere, shifted_mod_one,
+};
 use crate::math::{BVec4A, Rgb, Vec2, Vec3A, Vec4, luminance, transpose4};
 use std::f32::consts::PI;
 
@@ -166,6 +168,19 @@ impl LightUniforms {
             point: [
                 Vec4::from_array(lanes.map(|l| l.1.x)),
                 Vec4::from_array(lanes.map(|l| l.1.y)),
+            ],
+        }
+    }
+
+    /// These numbers shifted by `(pick, point)`, modulo one: the Cranley-Patterson rotation
+    /// of a lattice (see [`crate::math::sampling::Rank1Lattice`]).
+    #[inline(always)]
+    pub fn shifted(&self, (pick, point): (f32, Vec2)) -> Self {
+        LightUniforms {
+            pick: shifted_mod_one(self.pick, pick),
+            point: [
+                shifted_mod_one(self.point[0], point.x),
+                shifted_mod_one(self.point[1], point.y),
             ],
         }
     }

@@ -8,7 +8,7 @@ use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
-use crate::math::sampling::{Rank1Lattice, shifted_mod_one};
+use crate::math::sampling::Rank1Lattice;
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin, transpose4};
 use crate::settings::MAX_SHADOW_RAYS;
 
@@ -239,7 +239,7 @@ fn shade_one(
             lattice.len()
         };
         // The lattice's shift for this path: one hash for all its shadow rays.
-        let (shift_pick, shift_point) = rng::uniform3(key, bounce, dim::LIGHT_SAMPLES);
+        let shift = rng::uniform3(key, bounce, dim::LIGHT_SAMPLES);
         // The shading frame and the side the shadow rays leave from, one vector per
         // coordinate, for the lanes.
         let [s, t, n, side] =
@@ -252,13 +252,7 @@ fn shade_one(
             // square root and divisions is long, and the chains of a pass overlap only if no
             // shading code sits between them.
             for (group, samples) in pass.iter().zip(samples.iter_mut()) {
-                let uniforms = LightUniforms {
-                    pick: shifted_mod_one(group.pick, shift_pick),
-                    point: [
-                        shifted_mod_one(group.point[0], shift_point.x),
-                        shifted_mod_one(group.point[1], shift_point.y),
-                    ],
-                };
+                let uniforms = group.shifted(shift);
                 // Sampled from the offset origin, so the direction and length serve the
                 // shadow ray as they are (the offset is a rounding-error bound: it moves the
                 // estimate by nothing measurable).
