@@ -702,9 +702,7 @@ impl Bvh4 {
         }
         false
     }
-}
 
-impl Bvh4 {
     /// Loads both cache lines of node `index` now, as a prefetch would (in safe code: the
     /// `black_box` keeps the load), so that the misses of the nodes a walk pushes overlap the
     /// work done before it pops them: single shadow rays in the 1.3M-triangle scene +10%
