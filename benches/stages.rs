@@ -16,7 +16,7 @@ use wavetrace::wavefront::shade::{ShadeParams, shade_hits};
 use wavetrace::wavefront::{
     generate::generate_camera_rays, intersect::intersect_closest, shadow::trace_shadow_rays,
 };
-use wavetrace::{FlatScene, flatten};
+use wavetrace::{RenderScene, flatten};
 
 /// One batch: the whole 256 x 256 image, so the batch sees the scene as a render does.
 const SIDE: u32 = 256;
@@ -109,13 +109,13 @@ fn sub_batch_pixels() -> impl Iterator<Item = std::ops::Range<u32>> {
 }
 
 /// The sub-batches of the whole batch, in pixel order.
-fn prepare(scene: &FlatScene) -> Vec<Prepared> {
+fn prepare(scene: &RenderScene) -> Vec<Prepared> {
     let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
     (sub_batch_pixels().map(|pixels| prepare_sub_batch(scene, &camera, pixels))).collect()
 }
 
 fn prepare_sub_batch(
-    scene: &FlatScene,
+    scene: &RenderScene,
     camera: &PinholeCamera,
     pixels: std::ops::Range<u32>,
 ) -> Prepared {

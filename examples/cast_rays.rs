@@ -14,9 +14,9 @@
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use wavetrace::FlatScene;
-use wavetrace::flatten::bvh::TraversalStack;
-use wavetrace::flatten::ray_batches::Ray;
+use wavetrace::RenderScene;
+use wavetrace::accel::ray_batches::Ray;
+use wavetrace::accel::traverse::TraversalStack;
 use wavetrace::math::{Vec3, Vec3A};
 use wavetrace::scene::{Camera, Material, Mesh, Name};
 
@@ -115,7 +115,7 @@ fn in_given_order<T: Send>(
 
 /// Closest hits of `rays`, in their order. Not inlined, so that profilers can select it.
 #[inline(never)]
-fn cast_closest(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<Option<(u32, f32)>> {
+fn cast_closest(scene: &RenderScene, rays: &[Ray], order: Order) -> Vec<Option<(u32, f32)>> {
     match order {
         Order::Given => in_given_order(rays, |stack, r| {
             scene.closest_hit(stack, r.origin, r.direction, r.t_max)
@@ -126,7 +126,7 @@ fn cast_closest(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<Option<(u3
 
 /// Occlusion of `rays`, in their order. Not inlined (see [`cast_closest`]).
 #[inline(never)]
-fn cast_occluded(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<bool> {
+fn cast_occluded(scene: &RenderScene, rays: &[Ray], order: Order) -> Vec<bool> {
     match order {
         Order::Given => in_given_order(rays, |stack, r| {
             scene.occluded(stack, r.origin, r.direction, r.t_max)
@@ -138,7 +138,7 @@ fn cast_occluded(scene: &FlatScene, rays: &[Ray], order: Order) -> Vec<bool> {
 /// The share of `rays` (set `set` of scene `scene_name`) on which the answers cast in
 /// `order` agree with Embree's reference answers in `dir`.
 fn agreement(
-    scene: &FlatScene,
+    scene: &RenderScene,
     dir: &Path,
     scene_name: &str,
     set: &str,

@@ -3,7 +3,7 @@
 //! A physically based Monte Carlo path tracer. Data flows one way:
 //!
 //! ```text
-//! scene file --load_scene--> hecs::World --flatten--> FlatScene (SoA primitives + one BVH)
+//! scene file --load_scene--> hecs::World --flatten--> RenderScene (SoA primitives + one BVH)
 //!   --render (wavefront stages: generate, intersect, shade, shadow)--> Film --write_image--> file
 //! ```
 //!
@@ -21,13 +21,17 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod accel;
 pub mod bsdf;
 pub mod camera;
 pub mod error;
 pub mod film;
 pub mod flatten;
+pub mod geometry;
+pub mod lights;
 pub mod math;
 pub mod output;
+pub mod render_scene;
 pub mod scene;
 pub mod settings;
 pub mod texture;
@@ -35,8 +39,9 @@ pub mod wavefront;
 
 pub use error::{Error, Result};
 pub use film::{Film, Image, Pixels};
-pub use flatten::{FlatScene, flatten};
+pub use flatten::flatten;
 pub use output::write_image;
+pub use render_scene::RenderScene;
 pub use scene::{Scene, load_scene};
 pub use settings::RenderSettings;
 pub use wavefront::stats::RenderStats;

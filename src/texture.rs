@@ -1,5 +1,7 @@
 //! Textures: linear RGB texels with a sampler (wrap and filter per axis), looked up by
-//! texture coordinate, and the `KHR_texture_transform` of texture coordinates. Pure data and
+//! texture coordinate, the `KHR_texture_transform` of texture coordinates, and how the render
+//! scene's materials and lights refer to textures ([`TextureRef`], [`SurfaceTextures`],
+//! [`TexturedEmission`]). Pure data and
 //! math; loaders fill them and shading reads them. Colour data (base colour, emission) is
 //! stored sRGB-encoded and decoded here; data textures (metallic-roughness, normal maps) are
 //! stored linear.
@@ -247,6 +249,72 @@ fn wrap_index(i: i64, n: i64, wrap: Wrap) -> usize {
             }
         }
     }) as usize
+}
+
+/// Marks an unset texture in a [`TextureRef`].
+pub const NO_TEXTURE: u32 = u32::MAX;
+
+/// A texture of [`crate::render_scene::RenderScene::textures`] and the transform from the primitive's UVs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureRef {
+    /// Index into [`crate::render_scene::RenderScene::textures`] ([`NO_TEXTURE`] for none).
+    pub texture: u32,
+    /// `KHR_texture_transform`, applied at each lookup.
+    pub uv_transform: UvTransform,
+}
+
+impl Default for TextureRef {
+    fn default() -> Self {
+        TextureRef {
+            texture: NO_TEXTURE,
+            uv_transform: UvTransform::IDENTITY,
+        }
+    }
+}
+
+impl TextureRef {
+    /// Whether a texture is set.
+    #[inline]
+    pub fn is_set(&self) -> bool {
+        self.texture != NO_TEXTURE
+    }
+}
+
+/// The textures one flattened material reads at a hit (see [`MaterialTextures`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SurfaceTextures {
+    /// Multiplies the material's colour.
+    pub base_color: TextureRef,
+    /// Blue multiplies metallic, green roughness.
+    pub metallic_roughness: TextureRef,
+    /// Tangent-space normal map.
+    pub normal: TextureRef,
+    /// Multiplies the normal map's x and y.
+    pub normal_scale: f32,
+}
+
+impl SurfaceTextures {
+    /// Whether the material reads no texture (the common, fast case).
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        !(self.base_color.is_set() || self.metallic_roughness.is_set() || self.normal.is_set())
+    }
+}
+
+/// The emission texture of one triangle light. Its [`crate::lights::AreaLight::radiance`] is
+/// `radiance` times the texture's mean (the power estimate that chooses lights); the radiance
+/// leaving a point is `radiance` times the texel there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexturedEmission {
+    /// The emissive texture.
+    pub texture: TextureRef,
+    /// The emitter's radiance before the texture (`emissiveFactor` x strength).
+    pub radiance: Rgb,
+    /// Per channel, 1 / the texture's mean (0 where the mean is 0, which makes the texture 0
+    /// everywhere in that channel): turns a light sample drawn for the mean into one for the texel.
+    pub inverse_mean: Rgb,
+    /// Texture coordinates of the triangle's vertices, in the light's vertex order.
+    pub uvs: [Vec2; 3],
 }
 
 #[cfg(test)]

@@ -1,74 +1,54 @@
-//! The texture side of the material and light tables: which textures a flattened material
-//! reads (and how its UVs reach them), the textured emission of area lights, and tangents for
-//! normal maps. Lookups happen in `wavefront::surface`; this module only lays out the data.
+//! The materials of the world as the render scene keeps them: the scattering model of each
+//! [`Material`] ([`bsdf_of`]), the distinct textures each one reads (interned by pointer),
+//! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
-use super::NO_TEXTURE;
+use crate::bsdf::microfacet::alpha_from_roughness;
+use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
-use crate::scene::{MaterialTextures, TextureSlot};
-use crate::texture::{Texture, UvTransform};
+use crate::scene::{Material, MaterialTextures, TextureSlot};
+use crate::texture::{SurfaceTextures, Texture, TextureRef};
 use std::sync::Arc;
 
-/// A texture of [`super::FlatScene::textures`] and the transform from the primitive's UVs.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TextureRef {
-    /// Index into [`super::FlatScene::textures`] ([`NO_TEXTURE`] for none).
-    pub texture: u32,
-    /// `KHR_texture_transform`, applied at each lookup.
-    pub uv_transform: UvTransform,
-}
-
-impl Default for TextureRef {
-    fn default() -> Self {
-        TextureRef {
-            texture: NO_TEXTURE,
-            uv_transform: UvTransform::IDENTITY,
+/// The render-side scattering model of a scene material; `mr_textured` says whether a
+/// metallic-roughness texture varies it (which rules out the mirror special case).
+pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
+    match *m {
+        Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
+        Material::Mirror { tint } => Bsdf::Mirror { tint },
+        Material::Dielectric { ior, fresnel, tint } => Bsdf::Dielectric { ior, fresnel, tint },
+        Material::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            specular,
+            specular_color,
+            ior,
+            transmission,
+        } => {
+            if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
+                // Smooth clear glass stays the exact delta dielectric.
+                return Bsdf::Dielectric {
+                    ior,
+                    fresnel: FresnelModel::Exact,
+                    tint: base_color,
+                };
+            }
+            if metallic == 1.0 && roughness == 0.0 && !mr_textured {
+                // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
+                // metal, Schlick's brightening toward grazing angles is left out).
+                return Bsdf::Mirror { tint: base_color };
+            }
+            Bsdf::metallic_roughness(MetallicRoughness {
+                base_color,
+                metallic,
+                alpha: alpha_from_roughness(roughness),
+                ior,
+                specular,
+                specular_color,
+                transmission,
+            })
         }
     }
-}
-
-impl TextureRef {
-    /// Whether a texture is set.
-    #[inline]
-    pub fn is_set(&self) -> bool {
-        self.texture != NO_TEXTURE
-    }
-}
-
-/// The textures one flattened material reads at a hit (see [`MaterialTextures`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SurfaceTextures {
-    /// Multiplies the material's colour.
-    pub base_color: TextureRef,
-    /// Blue multiplies metallic, green roughness.
-    pub metallic_roughness: TextureRef,
-    /// Tangent-space normal map.
-    pub normal: TextureRef,
-    /// Multiplies the normal map's x and y.
-    pub normal_scale: f32,
-}
-
-impl SurfaceTextures {
-    /// Whether the material reads no texture (the common, fast case).
-    #[inline]
-    pub fn is_empty(&self) -> bool {
-        !(self.base_color.is_set() || self.metallic_roughness.is_set() || self.normal.is_set())
-    }
-}
-
-/// The emission texture of one triangle light. Its [`super::lights::AreaLight::radiance`] is
-/// `radiance` times the texture's mean (the power estimate that chooses lights); the radiance
-/// leaving a point is `radiance` times the texel there.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TexturedEmission {
-    /// The emissive texture.
-    pub texture: TextureRef,
-    /// The emitter's radiance before the texture (`emissiveFactor` x strength).
-    pub radiance: Rgb,
-    /// Per channel, 1 / the texture's mean (0 where the mean is 0, which makes the texture 0
-    /// everywhere in that channel): turns a light sample drawn for the mean into one for the texel.
-    pub inverse_mean: Rgb,
-    /// Texture coordinates of the triangle's vertices, in the light's vertex order.
-    pub uvs: [Vec2; 3],
 }
 
 /// Collects distinct textures (by pointer) into the flat scene's texture list.

@@ -1,116 +1,33 @@
 //! The ECS -> render boundary, and the only module that reads the `hecs::World`.
 //!
-//! [`flatten`] validates the world once and turns it into an immutable [`FlatScene`]:
+//! [`flatten`] validates the world once and turns it into an immutable [`RenderScene`]:
 //! world-space primitives in BVH order (so the BVH's slots index every per-primitive column
 //! directly, with no indirection), a material table with its textures, a light table (area
 //! and punctual lights), one BVH over all primitives, and, when some triangles bound the
 //! scene, a second over the primitives that can block shadow rays ([`occluders`]). The
 //! renderer's hot loops then assume valid data.
 
-pub mod bvh;
-pub mod leaf_prims;
-pub mod lights;
 pub mod materials;
-pub mod occluders;
-pub mod ray_batches;
-pub mod spheres;
-pub mod triangles;
 
-use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
+use crate::accel::build as bvh;
+use crate::accel::leaf_prims;
+use crate::accel::occluders;
+use crate::bsdf::Bsdf;
 use crate::error::{Error, Result};
+use crate::geometry::{Shape, SphereGeom, TriangleGeom};
+use crate::lights::{AreaLight, DeltaLight, LightTable};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::render_scene::{NO_EMITTER, RenderScene};
 use crate::scene::{
     Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
     VertexTangents,
 };
-use crate::texture::Texture;
-use lights::{AreaLight, DeltaLight, LightTable};
-use materials::{SurfaceTextures, TextureInterner, TextureRef, TexturedEmission};
+use crate::texture::{SurfaceTextures, TextureRef, TexturedEmission};
+use materials::{TextureInterner, bsdf_of};
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
-use spheres::SphereGeom;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
-use triangles::TriangleGeom;
-
-/// Marks a primitive that emits nothing in [`FlatScene::emitter`].
-pub const NO_EMITTER: u32 = u32::MAX;
-/// Marks an unset texture in a [`materials::TextureRef`].
-pub const NO_TEXTURE: u32 = u32::MAX;
-
-/// The geometry of one primitive, as the intersection test reads it (64 bytes).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Shape {
-    /// A triangle.
-    Triangle(TriangleGeom),
-    /// An analytic sphere.
-    Sphere(SphereGeom),
-}
-
-/// The render-side scene: immutable, world space, shared by reference across threads.
-pub struct FlatScene {
-    /// Geometry per BVH slot, laid out for the traversals' leaf tests (see
-    /// [`FlatScene::shape`] for the shape itself).
-    pub leaf_prims: Vec<leaf_prims::LeafPrim>,
-    /// Per BVH node, its leaves' triangles for one four-wide closest-hit test, when every
-    /// leaf holds one primitive (small scenes); else empty.
-    pub node_triangles: Vec<leaf_prims::NodeTriangles>,
-    /// Every primitive, for a closest-hit query without the tree, in the smallest scenes
-    /// (at most [`leaf_prims::MAX_FLAT_PRIMITIVES`]); else `None`.
-    pub flat_primitives: Option<leaf_prims::FlatPrimitives>,
-    /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
-    /// and for spheres.
-    pub vertex_normals: Vec<[Vec3; 3]>,
-    /// Texture coordinates of the three vertices per slot (zero when the mesh has none);
-    /// read only for textured materials.
-    pub vertex_uvs: Vec<[Vec2; 3]>,
-    /// Tangents of the three vertices per slot (world space, `w` = handedness, see
-    /// [`VertexTangents`]); empty unless some material has a normal map.
-    pub vertex_tangents: Vec<[Vec4; 3]>,
-    /// Material index per slot, into `materials`.
-    pub material: Vec<u32>,
-    /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
-    pub emitter: Vec<u32>,
-    /// Distinct materials.
-    pub materials: Vec<Bsdf>,
-    /// Textures per material, looked up at the hit's texture coordinates.
-    pub material_textures: Vec<SurfaceTextures>,
-    /// Distinct textures.
-    pub textures: Vec<Arc<Texture>>,
-    /// Emitting primitives and punctual lights.
-    pub lights: LightTable,
-    /// Per area light (as `lights.lights`), its emission texture; empty when no light has one.
-    pub textured_emission: Vec<Option<TexturedEmission>>,
-    /// The BVH over the primitives (slot `i` is `leaf_prims[i]`).
-    pub bvh: bvh::Bvh4,
-    /// The primitives that can block a shadow ray and their own tree, when some triangles
-    /// bound the scene and cannot (see [`occluders`]); `None`: all of them can.
-    pub occluders: Option<occluders::Occluders>,
-    /// Per slot, the index of the primitive in flattening order (meshes in query order, their
-    /// triangles in index order, then spheres), to map hits back to the input.
-    pub source_index: Vec<u32>,
-    /// The camera.
-    pub camera: Camera,
-    /// Things skipped while flattening (degenerate triangles, ...), for the user to see.
-    pub warnings: Vec<String>,
-    /// How long [`flatten`] took.
-    pub times: FlattenTimes,
-}
-
-impl FlatScene {
-    /// The primitive in slot `slot`.
-    #[inline(always)]
-    pub fn shape(&self, slot: usize) -> Shape {
-        self.leaf_prims[slot].shape()
-    }
-
-    /// The primitives in slot order.
-    pub fn shapes(&self) -> impl ExactSizeIterator<Item = Shape> + '_ {
-        self.leaf_prims.iter().map(leaf_prims::LeafPrim::shape)
-    }
-}
 
 /// How long [`flatten`] took (wall time).
 #[derive(Clone, Copy, Debug, Default)]
@@ -182,9 +99,9 @@ impl Columns {
     }
 }
 
-/// Flattens the world into a [`FlatScene`]. `path` names the scene in errors.
+/// Flattens the world into a [`RenderScene`]. `path` names the scene in errors.
 /// The camera used is the first one (the earliest spawned).
-pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
+pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
     let start = Instant::now();
     let camera = world
         .query::<(hecs::Entity, &Camera)>()
@@ -394,13 +311,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<FlatScene> {
             (groups[g].material, light)
         })
         .unzip();
-    // One record per slot, which also gives back the shape (see `FlatScene::shape`): a
+    // One record per slot, which also gives back the shape (see `RenderScene::shape`): a
     // second array of the shapes cost 84 MB and 20 ms at 1.3M triangles.
     let leaf_prims: Vec<leaf_prims::LeafPrim> = order
         .par_iter()
         .map(|&i| leaf_prims::LeafPrim::new(&columns.shapes[i as usize]))
         .collect();
-    Ok(FlatScene {
+    Ok(RenderScene {
         node_triangles: leaf_prims::node_triangles(&leaf_prims, &bvh),
         flat_primitives: leaf_prims::FlatPrimitives::new(&leaf_prims),
         leaf_prims,
@@ -485,48 +402,6 @@ fn punctual_lights(
         }
     }
     Ok(out)
-}
-
-/// The render-side scattering model of a scene material; `mr_textured` says whether a
-/// metallic-roughness texture varies it (which rules out the mirror special case).
-fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
-    match *m {
-        Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
-        Material::Mirror { tint } => Bsdf::Mirror { tint },
-        Material::Dielectric { ior, fresnel, tint } => Bsdf::Dielectric { ior, fresnel, tint },
-        Material::MetallicRoughness {
-            base_color,
-            metallic,
-            roughness,
-            specular,
-            specular_color,
-            ior,
-            transmission,
-        } => {
-            if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
-                // Smooth clear glass stays the exact delta dielectric.
-                return Bsdf::Dielectric {
-                    ior,
-                    fresnel: FresnelModel::Exact,
-                    tint: base_color,
-                };
-            }
-            if metallic == 1.0 && roughness == 0.0 && !mr_textured {
-                // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
-                // metal, Schlick's brightening toward grazing angles is left out).
-                return Bsdf::Mirror { tint: base_color };
-            }
-            Bsdf::metallic_roughness(MetallicRoughness {
-                base_color,
-                metallic,
-                alpha: alpha_from_roughness(roughness),
-                ior,
-                specular,
-                specular_color,
-                transmission,
-            })
-        }
-    }
 }
 
 /// Emitters that emit nothing are dropped; invalid radiance is an error.

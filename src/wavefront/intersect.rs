@@ -1,12 +1,12 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
-use crate::flatten::bvh::TraversalStack;
-use crate::flatten::{FlatScene, Shape};
+use crate::geometry::Shape;
 use crate::math::Vec2;
+use crate::render_scene::{RenderScene, TraversalStack};
 
 /// Finds the closest hit of each ray; misses get [`NO_HIT`].
-pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch) {
+pub fn intersect_closest(scene: &RenderScene, rays: &RayBatch, hits: &mut HitBatch) {
     let n = rays.len();
     hits.t.resize(n, 0.0);
     hits.slot.resize(n, NO_HIT);
@@ -20,7 +20,7 @@ pub fn intersect_closest(scene: &FlatScene, rays: &RayBatch, hits: &mut HitBatch
         (hits.slot[i], hits.t[i]) = (slot, t);
         if let Some(Shape::Triangle(tri)) = scene.leaf_prims.get(slot as usize).map(|p| p.shape()) {
             // Barycentrics only for the winner; the traversal computed them for every candidate.
-            hits.barycentric[i] = crate::flatten::triangles::intersect_triangle(
+            hits.barycentric[i] = crate::geometry::triangle::intersect_triangle(
                 &tri,
                 origin,
                 direction,

@@ -18,7 +18,7 @@ mod surface;
 use crate::camera::PinholeCamera;
 use crate::error::Result;
 use crate::film::{Film, FilmRegion};
-use crate::flatten::FlatScene;
+use crate::render_scene::RenderScene;
 use crate::settings::RenderSettings;
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use rayon::prelude::*;
@@ -60,7 +60,7 @@ struct Buffers {
 /// Renders `scene`, calling `progress` after each round of batches. Runs on the current
 /// rayon pool.
 pub fn render(
-    scene: &FlatScene,
+    scene: &RenderScene,
     settings: &RenderSettings,
     mut progress: impl FnMut(Progress) -> Flow,
 ) -> Result<(Film, RenderStats)> {
@@ -173,7 +173,7 @@ const ROUND_PATHS: u32 = 1 << 18;
 
 /// One batch of paths: one sample of each pixel of a film region.
 struct Batch<'a> {
-    scene: &'a FlatScene,
+    scene: &'a RenderScene,
     camera: &'a PinholeCamera,
     settings: &'a RenderSettings,
     sample_index: u32,

@@ -3,13 +3,14 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::surface;
-use crate::flatten::lights::{LIGHT_LANES, LightSamples, LightUniforms};
-use crate::flatten::spheres::SphereGeom;
-use crate::flatten::{FlatScene, NO_EMITTER, Shape};
+use crate::geometry::Shape;
+use crate::geometry::sphere::SphereGeom;
+use crate::lights::{LIGHT_LANES, LightSamples, LightUniforms};
 use crate::math::frame::Frame;
 use crate::math::rng::{self, dim};
 use crate::math::sampling::Rank1Lattice;
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin, transpose4};
+use crate::render_scene::{NO_EMITTER, RenderScene};
 use crate::settings::MAX_SHADOW_RAYS;
 
 /// Russian roulette never keeps a path with probability above this, so that paths through
@@ -40,7 +41,7 @@ pub struct ShadeParams {
 /// Shades every hit of the batch. Writes each path's next ray into `next_rays` (same index)
 /// and its shadow rays into its chunk of `shadows`; returns how many paths hit the depth cap.
 pub fn shade_hits(
-    scene: &FlatScene,
+    scene: &RenderScene,
     params: ShadeParams,
     rays: &RayBatch,
     hits: &HitBatch,
@@ -149,7 +150,7 @@ struct ShadowView<'a> {
 
 /// Shades one hit. Returns whether the path was cut by the depth cap.
 fn shade_one(
-    scene: &FlatScene,
+    scene: &RenderScene,
     params: &ShadeParams,
     key: u64,
     hit: Hit,

@@ -3,12 +3,11 @@
 //! lights, so they are traced together as packets of up to [`PACKET_SIZE`] rays.
 
 use super::batch::{PathState, ShadowBatch};
-use crate::flatten::FlatScene;
-use crate::flatten::bvh::{PACKET_SIZE, Packet, TraversalStack};
+use crate::render_scene::{PACKET_SIZE, Packet, RenderScene, TraversalStack};
 
 /// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
 /// Returns the number of shadow rays traced.
-pub fn trace_shadow_rays(scene: &FlatScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
+pub fn trace_shadow_rays(scene: &RenderScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
     let per = shadows.per_path;
     let mut traced = 0;
     let mut stack = TraversalStack::default();

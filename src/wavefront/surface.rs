@@ -4,10 +4,10 @@
 //! flat scene; nothing allocates.
 
 use crate::bsdf::Bsdf;
-use crate::flatten::FlatScene;
-use crate::flatten::lights::{LightPoints, LightSamples};
-use crate::flatten::materials::{SurfaceTextures, TextureRef};
+use crate::lights::{LightPoints, LightSamples};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
+use crate::render_scene::RenderScene;
+use crate::texture::{SurfaceTextures, TextureRef};
 
 /// Value at barycentrics `b` of a triangle whose vertices hold `v`.
 #[inline]
@@ -21,7 +21,7 @@ where
 
 /// The texel of `t` at the primitive's coordinates `uv`.
 #[inline]
-fn lookup(scene: &FlatScene, t: &TextureRef, uv: Vec2) -> Rgb {
+fn lookup(scene: &RenderScene, t: &TextureRef, uv: Vec2) -> Rgb {
     scene.textures[t.texture as usize].lookup(t.uv_transform.apply(uv))
 }
 
@@ -31,7 +31,7 @@ fn lookup(scene: &FlatScene, t: &TextureRef, uv: Vec2) -> Rgb {
 /// along the ray.
 #[inline]
 pub(super) fn textured_surface(
-    scene: &FlatScene,
+    scene: &RenderScene,
     material: usize,
     slot: usize,
     b: Vec2,
@@ -69,7 +69,7 @@ pub(super) fn textured_surface(
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn mapped_normal(
-    scene: &FlatScene,
+    scene: &RenderScene,
     textures: &SurfaceTextures,
     slot: usize,
     b: Vec2,
@@ -106,7 +106,7 @@ fn mapped_normal(
 /// Radiance leaving area light `light` at barycentrics `b` of its triangle: its texel times
 /// its factor if it has an emission texture, else its constant radiance.
 #[inline]
-pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
+pub(super) fn emitted_radiance(scene: &RenderScene, light: u32, b: Vec2) -> Rgb {
     match scene.textured_emission.get(light as usize) {
         Some(Some(e)) => e.radiance * lookup(scene, &e.texture, interpolate(e.uvs, b)),
         _ => scene.lights.lights[light as usize].radiance,
@@ -119,7 +119,7 @@ pub(super) fn emitted_radiance(scene: &FlatScene, light: u32, b: Vec2) -> Rgb {
 /// unbiased).
 #[inline]
 pub(super) fn texture_light_samples(
-    scene: &FlatScene,
+    scene: &RenderScene,
     (mut samples, points): (LightSamples, LightPoints),
 ) -> LightSamples {
     if !scene.textured_emission.is_empty() {
@@ -133,7 +133,7 @@ pub(super) fn texture_light_samples(
 /// Punctual lanes (`NOT_AREA_LIGHT`) have no entry and are left alone.
 #[cold]
 #[inline(never)]
-fn textured_radiance(scene: &FlatScene, radiance: [Vec4; 3], points: LightPoints) -> [Vec4; 3] {
+fn textured_radiance(scene: &RenderScene, radiance: [Vec4; 3], points: LightPoints) -> [Vec4; 3] {
     let LightPoints {
         area_light,
         barycentric,

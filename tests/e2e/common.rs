@@ -4,19 +4,19 @@
 use std::path::Path;
 use std::process::{Command, Output};
 use wavetrace::{
-    FlatScene, Flow, Image, RenderSettings, RenderStats, flatten, render,
+    Flow, Image, RenderScene, RenderSettings, RenderStats, flatten, render,
     scene::load::load_scene_str,
 };
 
 /// Flattens a TOML scene given as text (includes resolve against the repository's `scenes/`).
-pub fn scene_from_toml(text: &str) -> FlatScene {
+pub fn scene_from_toml(text: &str) -> RenderScene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/test-scene.toml");
     let scene = load_scene_str(&path, text).expect("test scene loads");
     flatten(&scene.world, &path).expect("test scene flattens")
 }
 
 /// The shipped seed room.
-pub fn room() -> FlatScene {
+pub fn room() -> RenderScene {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
     let scene = wavetrace::load_scene(&path).expect("room loads");
     flatten(&scene.world, &path).expect("room flattens")
@@ -24,7 +24,7 @@ pub fn room() -> FlatScene {
 
 /// Renders on a pool of `threads` threads.
 pub fn render_with_threads(
-    scene: &FlatScene,
+    scene: &RenderScene,
     settings: &RenderSettings,
     threads: usize,
 ) -> (Image, RenderStats) {
@@ -39,7 +39,7 @@ pub fn render_with_threads(
 }
 
 /// Renders with the default thread count.
-pub fn render_image(scene: &FlatScene, settings: &RenderSettings) -> Image {
+pub fn render_image(scene: &RenderScene, settings: &RenderSettings) -> Image {
     render_with_threads(scene, settings, 0).0
 }
 
@@ -72,7 +72,7 @@ pub fn mean_and_error(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
 }
 
 /// Renders the estimator twice with different seeds and returns its mean and standard error.
-pub fn estimate(scene: &FlatScene, settings: &RenderSettings) -> ([f64; 3], [f64; 3]) {
+pub fn estimate(scene: &RenderScene, settings: &RenderSettings) -> ([f64; 3], [f64; 3]) {
     let a = render_image(
         scene,
         &RenderSettings {

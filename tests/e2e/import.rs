@@ -11,14 +11,14 @@
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use wavetrace::flatten::Shape;
+use wavetrace::geometry::Shape;
 use wavetrace::math::{Rgb, Vec3};
 use wavetrace::scene::load::{
     LoadOptions, ROOM_FREE_FLOOR_CENTRE, UpAxis, bounding_box, has_lights, import_model,
     load_scene_with,
 };
 use wavetrace::scene::{Camera, Emitter, Material, MaterialTextures, Mesh, Name, Transform};
-use wavetrace::{FlatScene, RenderSettings, Scene, flatten, load_scene, render};
+use wavetrace::{RenderScene, RenderSettings, Scene, flatten, load_scene, render};
 
 fn blender_dir() -> PathBuf {
     // CI checks the repository out with `shared/` beside it, as on the development machine.
@@ -671,7 +671,7 @@ fn punctual_light_doc(light: Value, light_height: f32) -> Value {
     }))
 }
 
-fn render_mean(flat: &FlatScene) -> Rgb {
+fn render_mean(flat: &RenderScene) -> Rgb {
     let settings = RenderSettings {
         width: 4,
         height: 4,

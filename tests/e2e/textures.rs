@@ -6,7 +6,7 @@
 use crate::common::{assert_agree, assert_finite, render_image};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
-use wavetrace::{FlatScene, Image, RenderSettings, flatten, load_scene};
+use wavetrace::{Image, RenderScene, RenderSettings, flatten, load_scene};
 
 /// Little-endian binary buffer with one buffer view and accessor per attribute.
 #[derive(Default)]
@@ -124,7 +124,7 @@ fn quadrant_image(quadrant: u32, inside: [u8; 3], outside: [u8; 3]) -> image::Rg
     })
 }
 
-fn flat(path: &Path) -> FlatScene {
+fn flat(path: &Path) -> RenderScene {
     let scene = load_scene(path).expect("the test's glTF loads");
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     flatten(&scene.world, path).expect("flattens")
@@ -133,7 +133,7 @@ fn flat(path: &Path) -> FlatScene {
 /// Mean and standard error over the pixels where `inside(u, v)` holds, from two renders with
 /// different seeds (as `common::mean_and_error`, restricted to a region).
 fn region_estimate(
-    scene: &FlatScene,
+    scene: &RenderScene,
     settings: &RenderSettings,
     uv_of_pixel: impl Fn(u32, u32) -> (f32, f32),
     inside: impl Fn(f32, f32) -> bool,
@@ -281,7 +281,7 @@ fn each_gltf_texture_changes_its_own_region_of_the_image() {
     };
     let all = flat(&textured_quad(dir.path(), "all", true, true, true, true));
     assert_eq!(all.textures.len(), 4, "four textures, each used once");
-    let estimate = |scene: &FlatScene, quadrant: u32| {
+    let estimate = |scene: &RenderScene, quadrant: u32| {
         region_estimate(scene, &settings, uv_of_pixel, |u, v| {
             quadrant_of(u, v) == Some(quadrant)
         })
@@ -427,7 +427,7 @@ fn textured_emitters_light_the_scene_as_their_texels_say() {
         // texel everywhere would light the floor more evenly.
         for (side, left) in [("left", true), ("right", false)] {
             let inside = |px: u32, _py: u32| ((px as f32) < 8.0) == left;
-            let region = |scene: &FlatScene| {
+            let region = |scene: &RenderScene| {
                 region_estimate(
                     scene,
                     &settings,

@@ -5,8 +5,7 @@
 //! In a scene that outgrows the caches this is worth far more than the sort costs (see the
 //! README's ray-casting figures); the answers are exactly those of the one-ray queries.
 
-use super::FlatScene;
-use super::bvh::TraversalStack;
+use super::traverse::TraversalStack;
 use crate::math::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
@@ -26,42 +25,16 @@ pub struct Ray {
 /// ones stay in a core's cache (1-2 MiB of L2 on current CPUs) whatever the order, and the
 /// sort would only cost (the room, 0.3 MiB: 20-40% slower sorted; the 1.3M-triangle scene,
 /// 125 MiB: 30% faster).
-const SORT_ABOVE_BYTES: usize = 4 << 20;
+pub const SORT_ABOVE_BYTES: usize = 4 << 20;
 
 /// Rays traced one after another by a thread: large enough that the threads rarely meet,
 /// small enough that both cores stay busy to the end.
 const RAYS_PER_JOB: usize = 4096;
 
-impl FlatScene {
-    /// The closest hit of every ray, as [`FlatScene::closest_hit`] gives it (slot and
-    /// distance, `None` for a miss), in the order of `rays`.
-    pub fn closest_hits(&self, rays: &[Ray]) -> Vec<Option<(u32, f32)>> {
-        in_coherent_order(rays, self.sort_bounds(), |stack, ray| {
-            self.closest_hit(stack, ray.origin, ray.direction, ray.t_max)
-        })
-    }
-
-    /// Whether anything blocks each ray before its `t_max`, as [`FlatScene::occluded`]
-    /// tells it, in the order of `rays`.
-    pub fn occlusions(&self, rays: &[Ray]) -> Vec<bool> {
-        in_coherent_order(rays, self.sort_bounds(), |stack, ray| {
-            self.occluded(stack, ray.origin, ray.direction, ray.t_max)
-        })
-    }
-
-    /// The box over which batches are sorted, or `None` when the scene is too small for
-    /// sorting to pay (or empty).
-    fn sort_bounds(&self) -> Option<Aabb> {
-        let footprint = std::mem::size_of_val(&self.leaf_prims[..])
-            + std::mem::size_of_val(&self.bvh.nodes[..]);
-        self.bvh.bounds().filter(|_| footprint > SORT_ABOVE_BYTES)
-    }
-}
-
 /// Answers `query` for every ray, in parallel, casting the rays in Morton order of their
 /// origins within the scene's box `bounds` (`None`: in their own order); the answers are
 /// returned in the order of `rays`.
-fn in_coherent_order<T: Copy + Default + Send>(
+pub fn in_coherent_order<T: Copy + Default + Send>(
     rays: &[Ray],
     bounds: Option<Aabb>,
     query: impl Fn(&mut TraversalStack, &Ray) -> T + Sync,
@@ -143,11 +116,12 @@ mod tests {
     use super::*;
     use crate::math::Vec3;
     use crate::math::rng::{path_key, uniform};
+    use crate::render_scene::RenderScene;
     use crate::scene::{Camera, Material, Mesh, Sphere, Transform};
 
     /// A few thousand random triangles and some spheres in a 10-unit cube: far past the
     /// smallest scenes' flat test, so the queries walk the tree.
-    fn random_scene() -> FlatScene {
+    fn random_scene() -> RenderScene {
         let u = |i: u32, d: u32| uniform(path_key(3, i, 0), 0, d);
         let mut world = hecs::World::new();
         world.spawn((Camera::look_at(Vec3::ZERO, Vec3::X, Vec3::Z, 1.0),));

@@ -2,8 +2,8 @@
 //! 16 generalised to many emitters) and every punctual light (point, spot, directional; delta
 //! lights reached only by next-event estimation), each chosen in proportion to its power.
 
-use super::Shape;
-use super::triangles::TriangleGeom;
+use crate::geometry::Shape;
+use crate::geometry::triangle::TriangleGeom;
 use crate::math::sampling::{
     sample_discrete, sample_triangle, sample_uniform_sphere, shifted_mod_one,
 };
@@ -246,7 +246,7 @@ pub const NOT_AREA_LIGHT: u32 = u32::MAX;
 /// their power.
 #[derive(Clone, Debug, Default)]
 pub struct LightTable {
-    /// The emitting primitives (indexed by `FlatScene::emitter`).
+    /// The emitting primitives (indexed by `RenderScene::emitter`).
     pub lights: Vec<AreaLight>,
     /// The punctual lights.
     pub delta_lights: Vec<DeltaLight>,
@@ -701,8 +701,8 @@ impl DeltaLight {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flatten::spheres::SphereGeom;
-    use crate::flatten::triangles::TriangleGeom;
+    use crate::geometry::sphere::SphereGeom;
+    use crate::geometry::triangle::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
 
     /// One light sample seen from `p`: its point, direction, distance and weight.

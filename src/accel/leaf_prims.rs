@@ -5,16 +5,16 @@
 //! closest-hit traversal tests them together; in the smallest scenes the closest-hit query
 //! skips the tree and tests every triangle, four at a time.
 //!
-//! The triangle test does the same arithmetic as [`super::triangles::intersect_triangle`],
+//! The triangle test does the same arithmetic as [`crate::geometry::triangle::intersect_triangle`],
 //! so it returns the same distances bit for bit. It keeps one early exit, on the distance
 //! (cheap for coherent rays, whose candidates mostly lie beyond a closer hit: 12% fewer
 //! instructions on the room's primary rays), and forms the other conditions in vector
 //! compares before one branch: incoherent rays mispredict early exits about as often as not.
 
-use super::Shape;
-use super::bvh::{Bvh4, Node4};
-use super::spheres::{SphereGeom, intersect_sphere};
-use super::triangles::TriangleGeom;
+use super::build::{Bvh4, Node4};
+use crate::geometry::Shape;
+use crate::geometry::sphere::{SphereGeom, intersect_sphere};
+use crate::geometry::triangle::TriangleGeom;
 use crate::math::{BVec4A, Vec3A, Vec4, transpose4};
 
 /// `w` of a sphere record's first vector (triangles have 0).
@@ -420,7 +420,7 @@ impl FlatPrimitives {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flatten::triangles::TriangleGeom;
+    use crate::geometry::triangle::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
 
     /// The record gives the same distance as the shape's own test, bit for bit, on random

@@ -9,10 +9,10 @@
 //! plane does not block a ray from there, as the full tree's test might: a band as wide as
 //! the rounding, which no image can show.)
 
-use super::Shape;
-use super::bvh::{Bvh4, build_bvh};
+use super::build::{Bvh4, build_bvh};
 use super::leaf_prims::LeafPrim;
-use super::lights::{DeltaKind, DeltaLight};
+use crate::geometry::Shape;
+use crate::lights::{DeltaKind, DeltaLight};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -139,8 +139,8 @@ fn bounds_the_scene(shape: &Shape, points: &[ScenePoint], extent: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::flatten::spheres::SphereGeom;
-    use crate::flatten::triangles::TriangleGeom;
+    use crate::geometry::sphere::SphereGeom;
+    use crate::geometry::triangle::TriangleGeom;
     use crate::math::{Rgb, Vec3A};
 
     fn quad(corners: [[f32; 3]; 4]) -> [Shape; 2] {

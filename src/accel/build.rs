@@ -1,0 +1,427 @@
+//! The BVH build: obvhs's binary tree (PLOC + reinsertion) over the primitives' boxes,
+//! collapsed into the 4-wide [`Bvh4`] that the traversals walk; leaves are contiguous runs
+//! of slots, and `order` maps slots back to the input primitives.
+
+use crate::geometry::Shape;
+use crate::math::{Vec3A, Vec4};
+use obvhs::BvhBuildParams;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::bvh2::node::Bvh2Node;
+use rayon::prelude::*;
+
+/// Largest supported depth of the 4-wide tree; [`TraversalStack`] is sized for it.
+pub const MAX_DEPTH: usize = 64;
+/// Primitives per leaf at most, in large scenes: fewer, fuller leaves mean fewer nodes and
+/// cache misses (measured on the 1.3M-triangle ray sets: 10-20% faster than 1 or 2).
+/// Large scenes are built with obvhs's `fast_build` preset (PLOC with a short search)
+/// without its reinsertion pass: on the 1.3M-triangle ray sets it builds about 20% faster
+/// than `medium_build` for the same ray rates within noise, while `fastest_build` loses ~30%
+/// on primary rays; reinsertion cost 50-90 ms there for the same primitive tests per ray and
+/// ray rates within noise (2% less inner-node surface area). Small scenes use
+/// `very_slow_build` (reinsertion over every node): their build time is negligible, and in
+/// the seed room it halves the nodes a shadow packet visits (8.6 -> 4.2) and cuts those of a
+/// closest-hit ray from 7.2 to 4.7.
+pub(super) const MAX_LEAF_SIZE: u32 = 4;
+/// Scenes with fewer primitives get one primitive per leaf: they are rooms of large,
+/// overlapping triangles, where merging leaves makes every ray test most of the walls
+/// (measured on the seed room: 14 primitive tests per shadow ray with 4, 0.8 with 1).
+const SMALL_SCENE: usize = 4096;
+
+/// A node with up to four children.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct Node4 {
+    /// Child boxes by axis: `[min_x, min_y, min_z, max_x, max_y, max_z]`, lane `k` = child `k`.
+    /// Unused lanes hold an empty box (min = +inf, max = -inf) that no ray enters.
+    pub bounds: [Vec4; 6],
+    /// Inner child: index of its node. Leaf child: first primitive slot.
+    pub child: [u32; 4],
+    /// 0 for an inner child (or an unused lane), else the number of primitives in the leaf.
+    pub count: [u32; 4],
+}
+
+/// The 4-wide BVH. An empty scene has no nodes, and every ray misses.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh4 {
+    /// Nodes in depth-first order; the root is node 0.
+    pub nodes: Vec<Node4>,
+    /// Depth of the tree (a root alone has depth 1).
+    pub depth: usize,
+    /// Per node, bit `k` set when lane `k` is a leaf (`count[k] > 0`), for the closest-hit
+    /// traversal: one load instead of four compares per node.
+    pub leaf_lanes: Vec<u8>,
+}
+
+impl Bvh4 {
+    /// The box around everything in the tree; `None` for an empty tree.
+    pub fn bounds(&self) -> Option<Aabb> {
+        let root = self.nodes.first()?;
+        let lo = Vec3A::new(
+            root.bounds[0].min_element(),
+            root.bounds[1].min_element(),
+            root.bounds[2].min_element(),
+        );
+        let hi = Vec3A::new(
+            root.bounds[3].max_element(),
+            root.bounds[4].max_element(),
+            root.bounds[5].max_element(),
+        );
+        Some(Aabb::new(lo, hi))
+    }
+}
+
+/// Builds the BVH over `shapes`. Returns it with the map from BVH slots to shapes: slot `i`
+/// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
+/// degenerate geometry does that).
+pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
+    let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
+        (BvhBuildParams::very_slow_build(), 1)
+    } else {
+        let params = BvhBuildParams {
+            reinsertion_batch_ratio: 0.0,
+            ..BvhBuildParams::fast_build()
+        };
+        (params, MAX_LEAF_SIZE)
+    };
+    let bvh2 = build_bvh2(shapes, params);
+    let mut bvh = Bvh4 {
+        // About a third of the binary nodes with one primitive per leaf, a sixth with four
+        // (room enough that the vector never grows; pages never touched cost nothing).
+        nodes: Vec::with_capacity(bvh2.nodes.len() / 5 + 1),
+        depth: 0,
+        leaf_lanes: Vec::new(),
+    };
+    let mut order = Vec::with_capacity(shapes.len());
+    if !shapes.is_empty() {
+        let tree = BinaryTree {
+            bvh2: &bvh2,
+            max_leaf_size,
+            node_cost: params.collapse_traversal_cost,
+        };
+        bvh.depth = tree.collapse_in_parallel(&mut bvh.nodes, &mut order);
+        bvh.leaf_lanes = bvh
+            .nodes
+            .par_iter()
+            .map(|node| (0..4).fold(0, |m, k| m | u8::from(node.count[k] != 0) << k))
+            .collect();
+    }
+    (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
+}
+
+/// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
+/// the steps of its `build_bvh2` without its leaf collapse (which [`BinaryTree::collapse`]
+/// replaces) and without the validation that build runs with debug assertions on: that one panics on
+/// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
+/// trees with an error in every build.
+pub(super) fn build_bvh2(shapes: &[Shape], params: BvhBuildParams) -> Bvh2 {
+    let indices = (0..shapes.len() as u32).collect();
+    // The node array is first written by all threads: PLOC's merge loop fills it on one
+    // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone
+    // (build 240 -> 215 ms there).
+    let node_count = (2 * shapes.len()).saturating_sub(1);
+    let mut bvh2 = Bvh2 {
+        nodes: (0..node_count)
+            .into_par_iter()
+            .map(|_| Bvh2Node::default())
+            .collect(),
+        ..Bvh2::default()
+    };
+    obvhs::ploc::PlocBuilder::with_capacity(shapes.len()).build_with_bvh(
+        &mut bvh2,
+        params.ploc_search_distance,
+        shapes,
+        indices,
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    let mut reinsertion = obvhs::bvh2::reinsertion::ReinsertionOptimizer::default();
+    reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    reinsertion.run(
+        &mut bvh2,
+        params.reinsertion_batch_ratio * params.post_collapse_reinsertion_batch_ratio_multiplier,
+        None,
+    );
+    bvh2
+}
+
+/// The binary BVH, read top-down by [`BinaryTree::collapse`], which decides its leaves on
+/// the way: a subtree of at most `max_leaf_size` primitives becomes one leaf of the 4-wide
+/// tree when that lowers its surface area cost (testing all its primitives against keeping
+/// its nodes, each costing `node_cost` primitive tests), so that far-apart primitives stay
+/// apart. Only subtrees that small can become leaves, so the decision looks at a handful of
+/// nodes below the one asked about, and no pass over the whole binary tree is needed.
+pub(super) struct BinaryTree<'a> {
+    pub(super) bvh2: &'a Bvh2,
+    pub(super) max_leaf_size: u32,
+    pub(super) node_cost: f32,
+}
+
+impl BinaryTree<'_> {
+    /// The number of primitives of the leaf that binary node `n` becomes, or 0 if it stays
+    /// an inner node.
+    fn leaf_size(&self, n: u32) -> u32 {
+        let node = &self.bvh2.nodes[n as usize];
+        if node.is_leaf() {
+            return node.prim_count;
+        }
+        self.merged_leaf(n, self.max_leaf_size)
+            .map_or(0, |(size, _)| size)
+    }
+
+    /// If the subtree of `n` becomes one leaf of at most `budget` primitives: its size and
+    /// surface area cost. Each level down leaves the sibling at least one primitive of the
+    /// budget, so at most `2^budget` nodes are read.
+    fn merged_leaf(&self, n: u32, budget: u32) -> Option<(u32, f32)> {
+        let node = &self.bvh2.nodes[n as usize];
+        let area = node.aabb().half_area();
+        if node.is_leaf() {
+            let size = node.prim_count;
+            return (size <= budget).then_some((size, area * size as f32));
+        }
+        if budget < 2 {
+            return None;
+        }
+        let (left_size, left_cost) = self.merged_leaf(node.first_index, budget - 1)?;
+        let (right_size, right_cost) =
+            self.merged_leaf(node.first_index + 1, budget - left_size)?;
+        let size = left_size + right_size;
+        let merged_cost = area * size as f32;
+        (merged_cost <= area * self.node_cost + left_cost + right_cost)
+            .then_some((size, merged_cost))
+    }
+
+    /// The binary nodes that make the lanes of the 4-wide node over the binary nodes
+    /// `children`, expanded until there are four or only leaves remain, each with its leaf
+    /// size (0: an inner lane).
+    fn lanes(&self, children: &[u32]) -> Lanes {
+        let bvh2 = &self.bvh2.nodes;
+        let with_size = |n: u32| (n, self.leaf_size(n));
+        let mut lanes = Lanes::default();
+        children.iter().for_each(|&n| lanes.push(with_size(n)));
+        while lanes.len < 4 {
+            // Open the inner child with the largest surface: it is the most likely to be entered.
+            let widest = lanes
+                .as_slice()
+                .iter()
+                .enumerate()
+                .filter(|(_, (_, leaf_size))| *leaf_size == 0)
+                .max_by(|a, b| {
+                    let area = |n: u32| bvh2[n as usize].aabb().half_area();
+                    area(a.1.0).total_cmp(&area(b.1.0))
+                });
+            let Some((k, &(n, _))) = widest else { break };
+            let first = bvh2[n as usize].first_index;
+            lanes.replace_with_two(k, with_size(first), with_size(first + 1));
+        }
+        lanes
+    }
+
+    /// The two children of the inner binary node `n`.
+    fn children(&self, n: u32) -> [u32; 2] {
+        let first = self.bvh2.nodes[n as usize].first_index;
+        [first, first + 1]
+    }
+
+    /// The whole tree collapsed into `nodes` and `order` (see [`Self::collapse`]), the
+    /// subtrees below its top [`PARALLEL_LEVELS`] levels each on its own, in parallel, then
+    /// spliced in where the sequential collapse would have put them: the same nodes in the
+    /// same order. Returns the depth.
+    pub(super) fn collapse_in_parallel(
+        &self,
+        nodes: &mut Vec<Node4>,
+        order: &mut Vec<u32>,
+    ) -> usize {
+        let mut roots = Vec::new();
+        self.subtrees_below(&[0], PARALLEL_LEVELS, MAX_DEPTH, &mut roots);
+        let subtrees: Vec<Collapsed> = roots
+            .par_iter()
+            .map(|&(children, levels_left)| {
+                let mut subtree = Collapsed::default();
+                subtree.depth = self.collapse(
+                    &children,
+                    &mut subtree.nodes,
+                    &mut subtree.order,
+                    levels_left,
+                    usize::MAX,
+                    &mut std::iter::empty(),
+                );
+                subtree
+            })
+            .collect();
+        let mut subtrees = subtrees.into_iter();
+        self.collapse(
+            &[0],
+            nodes,
+            order,
+            MAX_DEPTH,
+            PARALLEL_LEVELS,
+            &mut subtrees,
+        )
+    }
+
+    /// Collects, in depth-first order, the binary children of every inner lane `levels`
+    /// levels of the 4-wide tree below the node over `children`, with the levels left there.
+    fn subtrees_below(
+        &self,
+        children: &[u32],
+        levels: usize,
+        levels_left: usize,
+        roots: &mut Vec<([u32; 2], usize)>,
+    ) {
+        for &(n, leaf_size) in self.lanes(children).as_slice() {
+            match (leaf_size, levels) {
+                (0, 1) => roots.push((self.children(n), levels_left - 1)),
+                (0, _) => {
+                    self.subtrees_below(&self.children(n), levels - 1, levels_left - 1, roots)
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Appends the 4-wide node made of the binary nodes `children` (see [`Self::lanes`])
+    /// and, recursively, its subtrees; appends the primitives of its leaves to `order`, so
+    /// that every leaf is a contiguous run of slots. Below `split` levels, the subtrees are
+    /// taken ready-made from `subtrees`, in depth-first order (see
+    /// [`Self::collapse_in_parallel`]). Returns the subtree's depth, or stops with a depth
+    /// above [`MAX_DEPTH`] when `levels_left` runs out: such a tree is refused anyway, and on
+    /// degenerate input (many identical triangles) the binary tree can be a chain as long as
+    /// the input, which would overflow the stack.
+    pub(super) fn collapse(
+        &self,
+        children: &[u32],
+        nodes: &mut Vec<Node4>,
+        order: &mut Vec<u32>,
+        levels_left: usize,
+        split: usize,
+        subtrees: &mut impl Iterator<Item = Collapsed>,
+    ) -> usize {
+        if split == 0 {
+            let subtree = subtrees
+                .next()
+                .expect("one subtree per inner lane at the split");
+            return subtree.splice_into(nodes, order);
+        }
+        if levels_left == 0 {
+            return MAX_DEPTH + 1;
+        }
+        let bvh2 = &self.bvh2.nodes;
+        let lanes = self.lanes(children);
+        let index = nodes.len();
+        nodes.push(Node4 {
+            bounds: [
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::NEG_INFINITY,
+            ],
+            child: [u32::MAX; 4],
+            count: [0; 4],
+        });
+        let mut depth = 1;
+        for (k, &(n, leaf_size)) in lanes.as_slice().iter().enumerate() {
+            let aabb = bvh2[n as usize].aabb();
+            for axis in 0..3 {
+                nodes[index].bounds[axis][k] = aabb.min[axis];
+                nodes[index].bounds[axis + 3][k] = aabb.max[axis];
+            }
+            if leaf_size > 0 {
+                nodes[index].child[k] = order.len() as u32;
+                nodes[index].count[k] = leaf_size;
+                self.append_primitives(n, order);
+            } else {
+                nodes[index].child[k] = nodes.len() as u32;
+                let below = self.collapse(
+                    &self.children(n),
+                    nodes,
+                    order,
+                    levels_left - 1,
+                    split - 1,
+                    subtrees,
+                );
+                depth = depth.max(1 + below);
+            }
+        }
+        depth
+    }
+
+    /// Appends the primitives below binary node `n` (a small subtree) to `order`.
+    fn append_primitives(&self, n: u32, order: &mut Vec<u32>) {
+        let node = &self.bvh2.nodes[n as usize];
+        if node.is_leaf() {
+            let first = node.first_index as usize;
+            order.extend_from_slice(
+                &self.bvh2.primitive_indices[first..first + node.prim_count as usize],
+            );
+        } else {
+            self.append_primitives(node.first_index, order);
+            self.append_primitives(node.first_index + 1, order);
+        }
+    }
+}
+
+/// Levels at the top of the 4-wide tree collapsed sequentially; the subtrees below them are
+/// collapsed in parallel. PLOC's trees are uneven at the top: the 1.3M-triangle scene has 4
+/// subtrees below 3 levels (one of them most of the tree) and 56 below 5. Collapse time
+/// there on two threads: 92-97 ms sequential, 65-70 ms with 5 levels (of which about 18 ms
+/// splice the subtrees in), 83-95 ms with 8 (2,098 subtrees). The collapse waits on memory
+/// (the binary nodes it reads are scattered over 84 MB), so two threads do not halve it.
+pub(super) const PARALLEL_LEVELS: usize = 5;
+
+/// A subtree collapsed on its own: node indices count from its root, slots from its first
+/// primitive.
+#[derive(Default)]
+pub(super) struct Collapsed {
+    nodes: Vec<Node4>,
+    order: Vec<u32>,
+    depth: usize,
+}
+
+impl Collapsed {
+    /// Appends the subtree to `nodes` and `order`, its inner children and leaves moved past
+    /// the nodes and slots already there. Returns its depth.
+    fn splice_into(self, nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
+        let (node_offset, slot_offset) = (nodes.len() as u32, order.len() as u32);
+        nodes.extend(self.nodes.into_iter().map(|mut node| {
+            for k in 0..4 {
+                if node.count[k] > 0 {
+                    node.child[k] += slot_offset;
+                } else if node.child[k] != u32::MAX {
+                    node.child[k] += node_offset; // an inner child (unused lanes keep MAX)
+                }
+            }
+            node
+        }));
+        order.extend_from_slice(&self.order);
+        self.depth
+    }
+}
+
+/// Up to four binary nodes that become the lanes of one 4-wide node, each with its leaf size
+/// (no allocation per node).
+#[derive(Default)]
+struct Lanes {
+    items: [(u32, u32); 4],
+    len: usize,
+}
+
+impl Lanes {
+    fn as_slice(&self) -> &[(u32, u32)] {
+        &self.items[..self.len]
+    }
+
+    fn push(&mut self, item: (u32, u32)) {
+        self.items[self.len] = item;
+        self.len += 1;
+    }
+
+    /// Replaces lane `k` by `a` and `b` (in that order); needs room for one more.
+    fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
+        self.items.copy_within(k + 1..self.len, k + 2);
+        (self.items[k], self.items[k + 1]) = (a, b);
+        self.len += 1;
+    }
+}

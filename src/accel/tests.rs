@@ -1,0 +1,469 @@
+//! The acceleration structures against brute force over every primitive: the tree's walks,
+//! the leaf layouts, packets and the build's two collapses.
+
+use super::build::*;
+use super::leaf_prims::{
+    FlatPrimitives, LeafPrim, MAX_FLAT_PRIMITIVES, closest_in_leaf, closest_in_node, node_triangles,
+};
+use super::packet::*;
+use super::traverse::*;
+use crate::geometry::triangle::{OriginTerms, TriangleGeom, intersect_triangle_from};
+use crate::geometry::{Shape, SphereGeom};
+use crate::math::Vec3A;
+use crate::math::rng::{path_key, uniform};
+use obvhs::BvhBuildParams;
+
+/// Random triangles and spheres, already in BVH order.
+fn random_scene(n: u32) -> (Vec<Shape>, Bvh4) {
+    let u = |i: u32, d: u32| uniform(path_key(1, i, 0), 0, d);
+    let shapes: Vec<Shape> = (0..n)
+        .map(|i| {
+            let c = Vec3A::new(u(i, 0), u(i, 1), u(i, 2)) * 10.0;
+            if i % 7 == 0 {
+                Shape::Sphere(SphereGeom {
+                    center: c,
+                    radius: 0.05 + 0.3 * u(i, 3),
+                })
+            } else {
+                let e = |d| Vec3A::new(u(i, d) - 0.5, u(i, d + 1) - 0.5, u(i, d + 2) - 0.5);
+                Shape::Triangle(TriangleGeom::new(c, c + e(4), c + e(7)))
+            }
+        })
+        .collect();
+    let (bvh, order) = build_bvh(&shapes).unwrap();
+    (order.iter().map(|&i| shapes[i as usize]).collect(), bvh)
+}
+
+/// Ray `i` of a random set `set` through the scenes of [`random_scene`]: half of them
+/// unbounded, half with a random length.
+fn random_ray(set: u64, i: u32) -> (Vec3A, Vec3A, f32) {
+    let u = |d: u32| uniform(path_key(set, i, 0), 0, d);
+    let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - Vec3A::ONE;
+    let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
+    let t_max = if i.is_multiple_of(2) {
+        f32::INFINITY
+    } else {
+        3.0 * u(6)
+    };
+    (origin, direction, t_max)
+}
+
+/// The closest hit found by testing every shape.
+fn brute_force_closest(
+    shapes: &[Shape],
+    origin: Vec3A,
+    direction: Vec3A,
+    t_max: f32,
+) -> Option<(u32, f32)> {
+    (0..shapes.len() as u32)
+        .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
+        .filter(|h| h.1 < f32::INFINITY)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+#[test]
+fn closest_hit_and_any_hit_agree_with_brute_force() {
+    let (shapes, bvh) = random_scene(3000);
+    assert!(bvh.depth > 2 && bvh.depth <= MAX_DEPTH);
+    let mut hits = 0;
+    // One stack for every ray, as the renderer uses it: what a ray leaves must not matter.
+    let mut stack = TraversalStack::default();
+    for i in 0..4000 {
+        let (origin, direction, t_max) = random_ray(2, i);
+        let brute = brute_force_closest(&shapes, origin, direction, t_max);
+        let found = bvh.closest_hit(&mut stack, origin, direction, t_max, |s, t| {
+            shapes[s as usize].intersect_t(origin, direction, t)
+        });
+        assert_eq!(found.map(|h| h.1), brute.map(|h| h.1), "ray {i}");
+        let occluded = bvh.any_hit(&mut stack, origin, direction, t_max, |s, t| {
+            shapes[s as usize].intersect_t(origin, direction, t)
+        });
+        assert_eq!(occluded, brute.is_some(), "ray {i}");
+        hits += brute.is_some() as u32;
+    }
+    assert!(
+        hits > 400,
+        "the test rays hit something often enough: {hits}"
+    );
+}
+
+#[test]
+fn leaf_records_agree_with_brute_force_in_a_scene_with_leaves_of_four() {
+    // Above `SMALL_SCENE`, leaves hold up to four primitives and are tested four wide.
+    let (shapes, bvh) = random_scene(6000);
+    let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+    let multi = (0..bvh.nodes.len())
+        .filter(|&n| bvh.nodes[n].count.iter().any(|&c| c >= 2))
+        .count();
+    assert!(multi > 100, "leaves of several primitives: {multi}");
+    let mut hits = 0;
+    let mut stack = TraversalStack::default();
+    for i in 0..3000 {
+        let (origin, direction, t_max) = random_ray(7, i);
+        let brute = brute_force_closest(&shapes, origin, direction, t_max);
+        let found = bvh.closest_hit_by_leaf(&mut stack, origin, direction, t_max, |f, c, t| {
+            closest_in_leaf(&prims, f, c, origin, direction, t)
+        });
+        assert_eq!(found.map(|h| h.1), brute.map(|h| h.1), "ray {i}");
+        hits += brute.is_some() as u32;
+    }
+    assert!(
+        hits > 300,
+        "the test rays hit something often enough: {hits}"
+    );
+}
+
+#[test]
+fn node_triangles_agree_with_brute_force_in_a_scene_with_leaves_of_one() {
+    // Below `SMALL_SCENE`, leaves hold one primitive and a node's triangles are tested
+    // together (spheres one by one).
+    let (shapes, bvh) = random_scene(2000);
+    let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+    let quads = node_triangles(&prims, &bvh);
+    assert_eq!(quads.len(), bvh.nodes.len());
+    let mut hits = 0;
+    let mut stack = TraversalStack::default();
+    for i in 0..3000 {
+        let (origin, direction, t_max) = random_ray(8, i);
+        let brute = brute_force_closest(&shapes, origin, direction, t_max);
+        let found =
+            bvh.closest_hit_by_node(&mut stack, origin, direction, t_max, |n, node, lanes, t| {
+                closest_in_node(&prims, &quads[n], node, lanes, origin, direction, t)
+            });
+        assert_eq!(found, brute, "ray {i}");
+        hits += brute.is_some() as u32;
+    }
+    assert!(
+        hits > 300,
+        "the test rays hit something often enough: {hits}"
+    );
+    // Trees with leaves of several primitives have none.
+    let (shapes, bvh) = random_scene(6000);
+    let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+    assert!(node_triangles(&prims, &bvh).is_empty());
+}
+
+#[test]
+fn the_parallel_collapse_makes_the_sequential_tree() {
+    // Leaves of one primitive (a deep tree) and of up to four, each with subtrees cut at
+    // the split and inner lanes that end above it.
+    for (size, params, max_leaf_size) in [
+        (3000, BvhBuildParams::very_slow_build(), 1),
+        (20000, BvhBuildParams::fast_build(), MAX_LEAF_SIZE),
+    ] {
+        let (shapes, _) = random_scene(size);
+        let bvh2 = build_bvh2(&shapes, params);
+        let tree = BinaryTree {
+            bvh2: &bvh2,
+            max_leaf_size,
+            node_cost: params.collapse_traversal_cost,
+        };
+        let (mut nodes, mut order) = (Vec::new(), Vec::new());
+        let depth = tree.collapse(
+            &[0],
+            &mut nodes,
+            &mut order,
+            MAX_DEPTH,
+            usize::MAX,
+            &mut std::iter::empty(),
+        );
+        let (mut parallel_nodes, mut parallel_order) = (Vec::new(), Vec::new());
+        let parallel_depth = tree.collapse_in_parallel(&mut parallel_nodes, &mut parallel_order);
+        assert!(
+            depth > PARALLEL_LEVELS + 1,
+            "the tree reaches below the split"
+        );
+        assert_eq!(parallel_depth, depth);
+        assert_eq!(parallel_order, order);
+        assert!(parallel_nodes == nodes, "{size} primitives: the same nodes");
+    }
+}
+
+#[test]
+fn flat_primitives_agree_with_brute_force_in_a_tiny_scene() {
+    // 28 primitives (the seed room's count), four of them spheres: seven groups of
+    // triangles, the last one partly empty.
+    let (shapes, _) = random_scene(28);
+    let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+    let flat = FlatPrimitives::new(&prims).expect("28 primitives are few enough");
+    let mut hits = 0;
+    for i in 0..20_000 {
+        // Every other ray aimed near a primitive, so that most of those hit one.
+        let (origin, mut direction, t_max) = random_ray(9, i);
+        if i % 2 == 0 {
+            let target = match shapes[(i / 2) as usize % shapes.len()] {
+                Shape::Triangle(t) => t.v0 + (t.e1 + t.e2) * 0.3,
+                Shape::Sphere(s) => s.center + direction * s.radius,
+            };
+            direction = (target - origin + 0.05 * direction).normalize();
+        }
+        let brute = brute_force_closest(&shapes, origin, direction, t_max);
+        assert_eq!(flat.closest_hit(origin, direction, t_max), brute, "ray {i}");
+        hits += brute.is_some() as u32;
+    }
+    assert!(
+        hits > 5000,
+        "the test rays hit something often enough: {hits}"
+    );
+    let (shapes, _) = random_scene(MAX_FLAT_PRIMITIVES as u32 + 1);
+    let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();
+    assert!(FlatPrimitives::new(&prims).is_none());
+}
+
+#[test]
+fn packets_agree_with_single_rays() {
+    // A small tree (packet node tests alone) and a large one (confirmed ray by ray).
+    for size in [1000, 20000] {
+        let (shapes, bvh) = random_scene(size);
+        let confirmed = bvh.nodes.len() >= CONFIRMED_PACKET_NODES;
+        assert_eq!(confirmed, size > 1000, "{} nodes", bvh.nodes.len());
+        packets_agree_in(&shapes, &bvh);
+    }
+}
+
+/// The segments of test packet `i`: `1 + i % PACKET_SIZE` of them from `origin` toward
+/// points scattered up to `spread / 2` per axis around `target` (random stream `stream`),
+/// each `reach` times as long as the way to its point. Returns the directions, the
+/// lengths and how many there are.
+fn segments_toward(
+    stream: u64,
+    i: u32,
+    origin: Vec3A,
+    target: Vec3A,
+    spread: f32,
+    reach: f32,
+) -> ([Vec3A; PACKET_SIZE], [f32; PACKET_SIZE], usize) {
+    let n = 1 + (i as usize % PACKET_SIZE);
+    let mut directions = [Vec3A::ZERO; PACKET_SIZE];
+    let mut t_max = [0.0; PACKET_SIZE];
+    for k in 0..n {
+        let v = |d: u32| uniform(path_key(stream, i, k as u32), 0, d) - 0.5;
+        let to = target + spread * Vec3A::new(v(0), v(1), v(2)) - origin;
+        (directions[k], t_max[k]) = (to.normalize(), reach * to.length());
+    }
+    (directions, t_max, n)
+}
+
+fn packets_agree_in(shapes: &[Shape], bvh: &Bvh4) {
+    let mut stack = TraversalStack::default();
+    for i in 0..400 {
+        let u = |d: u32| uniform(path_key(3, i, 0), 0, d);
+        let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
+        // A cone of directions toward a random target, as shadow rays toward a light; some
+        // packets are spread wide enough to mix direction signs.
+        let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
+        let spread = if i % 3 == 0 { 8.0 } else { 0.5 };
+        let (directions, t_max, n) = segments_toward(4, i, origin, target, spread, 1.0);
+        let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
+        let occluded = bvh.any_hit_packet(&mut stack, &packet, |s, open| {
+            (0..n)
+                .filter(|k| {
+                    open & (1 << k) != 0
+                        && shapes[s as usize].intersect_t(origin, directions[*k], t_max[*k])
+                            < f32::INFINITY
+                })
+                .fold(0, |m, k| m | 1 << k)
+        });
+        for k in 0..n {
+            let single = bvh.any_hit(&mut stack, origin, directions[k], t_max[k], |s, t| {
+                shapes[s as usize].intersect_t(origin, directions[k], t)
+            });
+            assert_eq!(occluded & (1 << k) != 0, single, "packet {i}, ray {k}");
+        }
+    }
+}
+
+#[test]
+fn plane_culling_never_drops_a_crossing_segment() {
+    // Random planes and packets, some segments ending within a hair of the plane: every
+    // packet the test culls must have the origin and all far ends strictly on one side
+    // (checked in f64), and clear cases must be culled.
+    let mut culled = 0;
+    for i in 0..20000 {
+        let u = |d: u32| uniform(path_key(5, i, 0), 0, d);
+        let origin = Vec3A::new(u(0), u(1), u(2)) * 20.0 - 10.0;
+        let normal = Vec3A::new(u(3) - 0.5, u(4) - 0.5, u(5) - 0.5) * 3.0;
+        let on_plane = Vec3A::new(u(6), u(7), u(8)) * 20.0 - 10.0;
+        // Far ends from 1e-5 to 1 away from the plane, on either side.
+        let gap = 10f32.powf(-5.0 * u(12)) * if u(13) < 0.5 { -1.0 } else { 1.0 };
+        let target = on_plane
+            + Vec3A::new(u(9) - 0.5, u(10) - 0.5, u(11) - 0.5) * 1e-3
+            + gap * normal.normalize();
+        let spread = if i % 2 == 0 { 1e-3 } else { 0.1 };
+        let (directions, t_max, n) = segments_toward(6, i, origin, target, spread, 1.0);
+        let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
+        if !packet.stays_on_one_side(normal, on_plane - origin) {
+            continue;
+        }
+        culled += 1;
+        let side = |x: Vec3A| {
+            let (x, p, nn) = (x.as_dvec3(), on_plane.as_dvec3(), normal.as_dvec3());
+            (x - p).dot(nn).signum()
+        };
+        let s0 = side(origin);
+        for k in 0..n {
+            let end = origin + directions[k] * t_max[k];
+            assert_eq!(side(end), s0, "packet {i} ray {k} crosses the plane");
+        }
+    }
+    assert!(culled > 4000, "clear cases are culled: {culled}");
+}
+
+#[test]
+fn edge_culling_never_drops_a_hit() {
+    // Random triangles and packets aimed across the plane at points near an edge, from
+    // 1e-6 to 1 inside or outside it: whenever the test culls a packet, the ray test
+    // must miss with every ray, and clear cases must be culled.
+    let mut culled = 0;
+    for i in 0..20000 {
+        let u = |d: u32| uniform(path_key(7, i, 0), 0, d);
+        let point = |d: u32| Vec3A::new(u(d), u(d + 1), u(d + 2)) * 20.0 - 10.0;
+        let tri = TriangleGeom::new(point(0), point(3), point(6));
+        let origin = point(9);
+        let vertices = tri.vertices();
+        let edge = (i % 3) as usize;
+        let (a, b) = (vertices[edge], vertices[(edge + 1) % 3]);
+        let inward = (vertices[(edge + 2) % 3] - a)
+            .reject_from(b - a)
+            .normalize();
+        let gap = 10f32.powf(-6.0 * u(12)) * if u(13) < 0.5 { -1.0 } else { 1.0 };
+        let target = a + u(14) * (b - a) + gap * inward;
+        let spread = if i % 2 == 0 { 1e-4 } else { 0.1 };
+        // Past the plane: the segments reach it, so only the edges decide.
+        let (directions, t_max, n) = segments_toward(8, i, origin, target, spread, 1.5);
+        let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
+        let terms = OriginTerms::new(&tri, origin);
+        if !packet.passes_beside(&tri, &terms) {
+            continue;
+        }
+        culled += 1;
+        for k in 0..n {
+            let hit = intersect_triangle_from(&tri, &terms, directions[k], 0.0, t_max[k]);
+            assert!(hit.is_none(), "packet {i} ray {k} hits the culled triangle");
+        }
+    }
+    // About 10,000 packets aim outside; those whose spread is below their gap are clear.
+    assert!(culled > 3500, "clear cases are culled: {culled}");
+}
+
+#[test]
+fn negative_zero_direction_components_count_as_parallel() {
+    // A ray straight up whose x and y components are -0.0 (as `-direction` of a light
+    // pointing straight down gives): it must still find the triangle above it, singly,
+    // by any-hit, and in a packet.
+    let tri = TriangleGeom::new(
+        Vec3A::new(-1.0, -1.0, 1.0),
+        Vec3A::new(1.0, -1.0, 1.0),
+        Vec3A::new(0.0, 1.0, 1.0),
+    );
+    let shapes = [Shape::Triangle(tri)];
+    let (bvh, _) = build_bvh(&shapes).unwrap();
+    let (origin, direction) = (Vec3A::new(0.1, 0.2, 0.0), Vec3A::new(-0.0, -0.0, 1.0));
+    let intersect = |s: u32, t: f32| shapes[s as usize].intersect_t(origin, direction, t);
+    assert_eq!(
+        bvh.closest_hit(
+            &mut TraversalStack::default(),
+            origin,
+            direction,
+            10.0,
+            intersect
+        ),
+        Some((0, 1.0))
+    );
+    assert!(bvh.any_hit(
+        &mut TraversalStack::default(),
+        origin,
+        direction,
+        10.0,
+        intersect
+    ));
+    let directions = [direction, Vec3A::new(0.0, 0.0, 1.0)];
+    let packet = Packet::new(origin, &directions, &[10.0, 10.0]);
+    let occluded = bvh.any_hit_packet(&mut TraversalStack::default(), &packet, |_, open| {
+        (0..2)
+            .filter(|k| open & (1 << k) != 0 && intersect(0, 10.0) < f32::INFINITY)
+            .fold(0, |m, k| m | 1 << k)
+    });
+    assert_eq!(occluded, 0b11);
+}
+
+/// The scalar form of [`safe_inverse3`], written out as the reference.
+fn safe_inverse(x: f32) -> f32 {
+    if x.abs() < f32::EPSILON {
+        let sign = if x >= 0.0 { 1.0 } else { -1.0 };
+        sign / f32::EPSILON
+    } else {
+        1.0 / x
+    }
+}
+
+#[test]
+fn box_ray_setup_matches_the_scalar_inverse_and_near_planes() {
+    let values = [
+        0.0,
+        -0.0,
+        1e-9,
+        -1e-9,
+        f32::EPSILON,
+        -f32::EPSILON,
+        0.3,
+        -0.7,
+        1.0,
+    ];
+    for &x in &values {
+        for &y in &values {
+            let direction = Vec3A::new(x, y, -y);
+            let ray = BoxRay::new(Vec3A::ZERO, direction);
+            for a in 0..3 {
+                let d = direction[a];
+                assert_eq!(ray.inv_direction[a].x.to_bits(), safe_inverse(d).to_bits());
+                assert_eq!(ray.near[a], if d >= 0.0 { a } else { a + 3 }, "{d}");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_chain_of_identical_triangles_is_refused_without_deep_recursion() {
+    // Copies of one triangle make the binary tree a long chain; the collapse must give up
+    // at the depth limit instead of recursing down the whole chain, which would overflow
+    // this thread's small stack (200,000 copies overflowed the main thread's 8 MiB).
+    let tri = Shape::Triangle(TriangleGeom::new(Vec3A::ZERO, Vec3A::X, Vec3A::Y));
+    let refused = std::thread::Builder::new()
+        .stack_size(256 * 1024)
+        .spawn(move || build_bvh(&vec![tri; 8_000]).is_none())
+        .unwrap()
+        .join()
+        .unwrap();
+    assert!(refused);
+}
+
+#[test]
+fn empty_and_single_primitive_scenes() {
+    let (bvh, order) = build_bvh(&[]).unwrap();
+    assert!(
+        order.is_empty()
+            && bvh
+                .closest_hit(
+                    &mut TraversalStack::default(),
+                    Vec3A::ZERO,
+                    Vec3A::X,
+                    f32::INFINITY,
+                    |_, _| 0.0
+                )
+                .is_none()
+    );
+    let one = [Shape::Sphere(SphereGeom {
+        center: Vec3A::new(3.0, 0.0, 0.0),
+        radius: 1.0,
+    })];
+    let (bvh, _) = build_bvh(&one).unwrap();
+    let hit = bvh.closest_hit(
+        &mut TraversalStack::default(),
+        Vec3A::ZERO,
+        Vec3A::X,
+        f32::INFINITY,
+        |s, t| one[s as usize].intersect_t(Vec3A::ZERO, Vec3A::X, t),
+    );
+    assert_eq!(hit, Some((0, 2.0)));
+}
