@@ -8,14 +8,12 @@
 use criterion::{BatchSize, Criterion, Throughput, criterion_group, criterion_main};
 use std::hint::black_box;
 use std::path::Path;
-use wavetrace::camera::PinholeCamera;
+use wavetrace::internals::{
+    HitBatch, PathState, PinholeCamera, RayBatch, ShadeParams, ShadowBatch, generate_camera_rays,
+    intersect_closest, shade_hits, trace_shadow_rays,
+};
 use wavetrace::math::{Vec3, rng};
 use wavetrace::scene::{Material, Mesh, Name, Transform};
-use wavetrace::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
-use wavetrace::wavefront::shade::{ShadeParams, shade_hits};
-use wavetrace::wavefront::{
-    generate::generate_camera_rays, intersect::intersect_closest, shadow::trace_shadow_rays,
-};
 use wavetrace::{RenderScene, flatten};
 
 /// One batch: the whole 256 x 256 image, so the batch sees the scene as a render does.
@@ -110,7 +108,7 @@ fn sub_batch_pixels() -> impl Iterator<Item = std::ops::Range<u32>> {
 
 /// The sub-batches of the whole batch, in pixel order.
 fn prepare(scene: &RenderScene) -> Vec<Prepared> {
-    let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
+    let camera = PinholeCamera::new(scene.camera(), SIDE, SIDE);
     (sub_batch_pixels().map(|pixels| prepare_sub_batch(scene, &camera, pixels))).collect()
 }
 
@@ -173,7 +171,7 @@ fn stages(c: &mut Criterion) {
     let heavy = flatten(&heavy_world(), Path::new("heavy")).unwrap();
     for (name, scene) in [("seed_room", &room), ("heavy", &heavy)] {
         let batch = prepare(scene);
-        let camera = PinholeCamera::new(&scene.camera, SIDE, SIDE);
+        let camera = PinholeCamera::new(scene.camera(), SIDE, SIDE);
 
         let mut g = c.benchmark_group("generate");
         g.throughput(Throughput::Elements(BATCH as u64));
@@ -284,7 +282,7 @@ fn stages(c: &mut Criterion) {
         .sum();
     g.throughput(Throughput::Elements(triangles));
     g.bench_function("heavy", |b| {
-        b.iter(|| black_box(flatten(&world, Path::new("heavy")).unwrap().bvh.nodes.len()))
+        b.iter(|| black_box(flatten(&world, Path::new("heavy")).unwrap().bvh_depth()))
     });
     g.finish();
 }

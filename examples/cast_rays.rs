@@ -15,8 +15,7 @@ use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use wavetrace::RenderScene;
-use wavetrace::accel::ray_batches::Ray;
-use wavetrace::accel::traverse::TraversalStack;
+use wavetrace::internals::{Ray, TraversalStack};
 use wavetrace::math::{Vec3, Vec3A};
 use wavetrace::scene::{Camera, Material, Mesh, Name};
 
@@ -161,7 +160,7 @@ fn agreement(
             .filter(|(ours, (rt, rp))| match ours {
                 None => !rt.is_finite(),
                 Some((slot, t)) => {
-                    scene.source_index[*slot as usize] == **rp
+                    scene.source_index(*slot as usize) == **rp
                         || (t - **rt).abs() <= 1e-5 * rt.abs().max(1e-3)
                 }
             })
@@ -228,9 +227,9 @@ fn main() {
     let scene = wavetrace::flatten(&world, &dir).expect("flatten");
     println!(
         "{scene_name}: {triangle_count} triangles, BVH build {:.1} ms, flatten + BVH build {:.1} ms ({threads} threads), BVH depth {}",
-        scene.times.bvh_build.as_secs_f64() * 1e3,
-        scene.times.total.as_secs_f64() * 1e3,
-        scene.bvh.depth
+        scene.flatten_times().bvh_build.as_secs_f64() * 1e3,
+        scene.flatten_times().total.as_secs_f64() * 1e3,
+        scene.bvh_depth()
     );
 
     println!(

@@ -1,18 +1,23 @@
 //! # wavetrace
 //!
-//! A physically based Monte Carlo path tracer. Data flows one way:
+//! A physically based Monte Carlo path tracer. Data flows one way (see
+//! `docs/architecture.md` for the code map):
 //!
 //! ```text
 //! scene file --load_scene--> hecs::World --flatten--> RenderScene (SoA primitives + one BVH)
 //!   --render (wavefront stages: generate, intersect, shade, shadow)--> Film --write_image--> file
 //! ```
 //!
+//! The public front door: [`load_scene`], [`flatten`], [`RenderSettings::resolve`] (the
+//! scene's `[render]` settings under the caller's overrides), [`render`], [`write_image`].
+//!
 //! ```no_run
-//! use wavetrace::{RenderSettings, flatten, load_scene, render, write_image, Flow};
+//! use wavetrace::{RenderOverrides, RenderSettings, flatten, load_scene, render, write_image, Flow};
 //! let path = std::path::Path::new("scenes/room.toml");
 //! let scene = load_scene(path)?;
 //! let flat = flatten(&scene.world, path)?;
-//! let settings = RenderSettings { width: 200, height: 200, spp: 4, ..Default::default() };
+//! let overrides = RenderOverrides { width: Some(200), spp: Some(4), ..Default::default() };
+//! let settings = RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);
 //! let (film, stats) = render(&flat, &settings, |_| Flow::Continue)?;
 //! write_image(std::path::Path::new("room.png"), &film, 0.0)?;
 //! println!("{}", stats.summary());
@@ -21,28 +26,46 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
-pub mod accel;
-pub mod bsdf;
-pub mod camera;
+pub(crate) mod accel;
+pub(crate) mod bsdf;
+pub(crate) mod camera;
 pub mod error;
 pub mod film;
-pub mod flatten;
-pub mod geometry;
-pub mod lights;
+pub(crate) mod flatten;
+pub(crate) mod geometry;
+pub(crate) mod lights;
 pub mod math;
 pub mod output;
-pub mod render_scene;
+pub(crate) mod render_scene;
 pub mod scene;
 pub mod settings;
-pub mod texture;
-pub mod wavefront;
+pub(crate) mod texture;
+pub(crate) mod wavefront;
 
 pub use error::{Error, Result};
 pub use film::{Film, Image, Pixels};
-pub use flatten::flatten;
+pub use flatten::{FlattenTimes, flatten};
 pub use output::write_image;
 pub use render_scene::RenderScene;
 pub use scene::{Scene, load_scene};
-pub use settings::RenderSettings;
+pub use settings::{RenderOverrides, RenderSettings};
 pub use wavefront::stats::RenderStats;
 pub use wavefront::{Flow, Progress, render};
+
+/// The renderer's internals, for the stage benchmarks, the examples and the end-to-end tests
+/// only. **Unstable**: anything here may change or go away without notice; programs use the
+/// items at the crate root.
+#[doc(hidden)]
+pub mod internals {
+    pub use crate::bsdf::Bsdf;
+    pub use crate::camera::PinholeCamera;
+    pub use crate::geometry::Shape;
+    pub use crate::lights::LightTable;
+    pub use crate::render_scene::{PACKET_SIZE, Packet, Ray, TraversalStack};
+    pub use crate::texture::{SurfaceTextures, Texture, TextureRef};
+    pub use crate::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
+    pub use crate::wavefront::generate::generate_camera_rays;
+    pub use crate::wavefront::intersect::intersect_closest;
+    pub use crate::wavefront::shade::{ShadeParams, shade_hits};
+    pub use crate::wavefront::shadow::trace_shadow_rays;
+}

@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use wavetrace::scene::load::{LoadOptions, load_scene_with};
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
-use wavetrace::{Flow, RenderSettings, RenderStats, flatten, render, write_image};
+use wavetrace::{Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image};
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -218,40 +218,27 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         // Refuse an unwritable output before spending time on the render.
         wavetrace::output::check_writable(&output)?;
         let flat = flatten(&scene.world, &args.scene)?;
-        for warning in scene.warnings.iter().chain(&flat.warnings) {
+        for warning in scene.warnings.iter().chain(flat.warnings()) {
             eprintln!("warning: {warning}");
         }
         eprintln!(
             "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
-            flat.leaf_prims.len(),
-            flat.times.bvh_build.as_secs_f64() * 1e3,
-            flat.times.total.as_secs_f64() * 1e3
+            flat.primitive_count(),
+            flat.flatten_times().bvh_build.as_secs_f64() * 1e3,
+            flat.flatten_times().total.as_secs_f64() * 1e3
         );
-        let defaults = RenderSettings::default();
-        let spp = match (args.spp, args.time) {
-            (Some(spp), _) => spp,
-            (None, Some(_)) => u32::MAX, // the time budget decides
-            (None, None) => scene.defaults.spp.unwrap_or(defaults.spp),
+        let overrides = RenderOverrides {
+            width: args.width,
+            height: args.height,
+            // With a time budget and no sample count, the budget decides.
+            spp: args.spp.or(args.time.map(|_| u32::MAX)),
+            shadow_rays: args.shadow_rays,
+            mis: Some(!args.no_mis),
+            seed: Some(args.seed),
+            batch_size: Some(args.batch_size),
         };
-        let (width, height) = image_size(
-            args.width.or(scene.defaults.width),
-            args.height.or(scene.defaults.height),
-            flat.camera.aspect_ratio,
-            (defaults.width, defaults.height),
-        );
-        let settings = RenderSettings {
-            width,
-            height,
-            spp,
-            shadow_rays: args
-                .shadow_rays
-                .or(scene.defaults.shadow_rays)
-                .unwrap_or(defaults.shadow_rays),
-            mis: !args.no_mis,
-            seed: args.seed,
-            batch_size: args.batch_size,
-            ..defaults
-        };
+        let settings =
+            RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);
         settings.validate()?;
 
         if let Some(signal) = received(&stop_signal) {
@@ -392,26 +379,6 @@ fn run_bench_seed(args: BenchSeedArgs) -> Result<()> {
         }
         Ok(())
     })
-}
-
-/// The image size: what is given; a missing side follows the camera's aspect ratio (width /
-/// height) when it has one; with neither side given the larger side is the default's.
-fn image_size(
-    width: Option<u32>,
-    height: Option<u32>,
-    aspect: Option<f32>,
-    default: (u32, u32),
-) -> (u32, u32) {
-    let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0);
-    let side = |x: f32| (x.round() as u32).max(1);
-    match (width, height, aspect) {
-        (Some(w), Some(h), _) => (w, h),
-        (Some(w), None, Some(a)) => (w, side(w as f32 / a)),
-        (None, Some(h), Some(a)) => (side(h as f32 * a), h),
-        (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
-        (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
-        (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
-    }
 }
 
 /// The signal received so far, if any.

@@ -1,7 +1,10 @@
-//! Render settings, passed explicitly from the CLI (or a test) to the renderer.
+//! Render settings, passed explicitly from the CLI (or a test) to the renderer, and the one
+//! place of their precedence: the caller's overrides (command-line flags) over the scene
+//! file's `[render]` table over the defaults ([`RenderSettings::resolve`]).
 
 use crate::error::{Error, Result};
 use crate::math::rng::DEFAULT_SEED;
+use crate::scene::load::SceneDefaults;
 
 /// Largest accepted image side, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 32_768;
@@ -57,7 +60,57 @@ impl Default for RenderSettings {
     }
 }
 
+/// What the caller (the command line, a test) sets; `None` leaves the choice to the scene file
+/// and then to the defaults. The flags that scene files do not set are plain overrides too.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RenderOverrides {
+    /// Image width in pixels.
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    pub height: Option<u32>,
+    /// Samples per pixel.
+    pub spp: Option<u32>,
+    /// Shadow rays per diffuse hit.
+    pub shadow_rays: Option<u32>,
+    /// Whether MIS combines light and BSDF samples.
+    pub mis: Option<bool>,
+    /// Seed of every random number.
+    pub seed: Option<u64>,
+    /// Paths per wavefront batch.
+    pub batch_size: Option<u32>,
+}
+
 impl RenderSettings {
+    /// The settings of a render: each one from `overrides` if set, else from the scene file's
+    /// `[render]` table (`scene`), else the default. A missing image side follows the
+    /// camera's aspect ratio (`aspect`, width / height) when it has one; with neither side
+    /// given, the larger side is the default's.
+    pub fn resolve(
+        scene: &SceneDefaults,
+        overrides: &RenderOverrides,
+        aspect: Option<f32>,
+    ) -> RenderSettings {
+        let defaults = RenderSettings::default();
+        let (width, height) = image_size(
+            overrides.width.or(scene.width),
+            overrides.height.or(scene.height),
+            aspect,
+            (defaults.width, defaults.height),
+        );
+        RenderSettings {
+            width,
+            height,
+            spp: overrides.spp.or(scene.spp).unwrap_or(defaults.spp),
+            shadow_rays: (overrides.shadow_rays)
+                .or(scene.shadow_rays)
+                .unwrap_or(defaults.shadow_rays),
+            mis: overrides.mis.unwrap_or(defaults.mis),
+            seed: overrides.seed.unwrap_or(defaults.seed),
+            batch_size: overrides.batch_size.unwrap_or(defaults.batch_size),
+            ..defaults
+        }
+    }
+
     /// Checks the settings before anything is allocated.
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(Error::Settings(m));
@@ -98,5 +151,112 @@ impl RenderSettings {
     /// Number of pixels.
     pub fn pixel_count(&self) -> u64 {
         self.width as u64 * self.height as u64
+    }
+}
+
+/// The image size: what is given; a missing side follows the camera's aspect ratio (width /
+/// height) when it has one; with neither side given the larger side is the default's.
+fn image_size(
+    width: Option<u32>,
+    height: Option<u32>,
+    aspect: Option<f32>,
+    default: (u32, u32),
+) -> (u32, u32) {
+    let aspect = aspect.filter(|a| a.is_finite() && *a > 0.0);
+    let side = |x: f32| (x.round() as u32).max(1);
+    match (width, height, aspect) {
+        (Some(w), Some(h), _) => (w, h),
+        (Some(w), None, Some(a)) => (w, side(w as f32 / a)),
+        (None, Some(h), Some(a)) => (side(h as f32 * a), h),
+        (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
+        (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
+        (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(width: Option<u32>, spp: Option<u32>, shadow_rays: Option<u32>) -> SceneDefaults {
+        SceneDefaults {
+            width,
+            height: width,
+            spp,
+            shadow_rays,
+        }
+    }
+
+    #[test]
+    fn overrides_beat_the_scene_which_beats_the_defaults() {
+        let defaults = RenderSettings::default();
+        let none = RenderOverrides::default();
+        // Nothing set anywhere: the defaults.
+        assert_eq!(
+            RenderSettings::resolve(&SceneDefaults::default(), &none, None),
+            defaults
+        );
+        // The scene's [render] table over the defaults.
+        let room = scene(Some(300), Some(5), Some(7));
+        let from_scene = RenderSettings::resolve(&room, &none, None);
+        assert_eq!(
+            (
+                from_scene.width,
+                from_scene.height,
+                from_scene.spp,
+                from_scene.shadow_rays
+            ),
+            (300, 300, 5, 7)
+        );
+        assert_eq!(from_scene.seed, defaults.seed);
+        // Flags over the scene, field by field: the unset ones still come from the scene.
+        let flags = RenderOverrides {
+            width: Some(64),
+            height: Some(48),
+            spp: Some(2),
+            mis: Some(false),
+            seed: Some(9),
+            batch_size: Some(100),
+            ..RenderOverrides::default()
+        };
+        let settings = RenderSettings::resolve(&room, &flags, None);
+        assert_eq!(
+            (
+                settings.width,
+                settings.height,
+                settings.spp,
+                settings.shadow_rays
+            ),
+            (64, 48, 2, 7)
+        );
+        assert_eq!(
+            (settings.mis, settings.seed, settings.batch_size),
+            (false, 9, 100)
+        );
+        assert_eq!(settings.max_depth, defaults.max_depth);
+    }
+
+    #[test]
+    fn a_missing_side_follows_the_cameras_aspect_ratio() {
+        let wide = Some(2.0);
+        let only_width = RenderOverrides {
+            width: Some(400),
+            ..RenderOverrides::default()
+        };
+        let scene_none = SceneDefaults::default();
+        let s = RenderSettings::resolve(&scene_none, &only_width, wide);
+        assert_eq!((s.width, s.height), (400, 200));
+        // Neither side: the larger one is the default's.
+        let s = RenderSettings::resolve(&scene_none, &RenderOverrides::default(), wide);
+        assert_eq!((s.width, s.height), (800, 400));
+        let s = RenderSettings::resolve(&scene_none, &RenderOverrides::default(), Some(0.5));
+        assert_eq!((s.width, s.height), (400, 800));
+        // A flag's width with the scene's height: both given, the aspect ratio is ignored.
+        let tall_scene = SceneDefaults {
+            height: Some(100),
+            ..SceneDefaults::default()
+        };
+        let s = RenderSettings::resolve(&tall_scene, &only_width, wide);
+        assert_eq!((s.width, s.height), (400, 100));
     }
 }

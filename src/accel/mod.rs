@@ -19,4 +19,41 @@ pub mod ray_batches;
 pub mod traverse;
 
 #[cfg(test)]
+pub mod reference;
+#[cfg(test)]
 mod tests;
+
+use build::Bvh4;
+use leaf_prims::{FlatPrimitives, LeafPrim, NodeTriangles, node_triangles};
+
+/// Which layout the closest-hit query reads, chosen once when the scene is built; each is
+/// tested against [`reference`] (see `render_scene`'s tests). Shadow rays have one path of
+/// their own: the tree of the occluders when some triangles bound the scene ([`occluders`]),
+/// else the whole tree.
+#[derive(Clone, Debug)]
+pub enum ClosestHitPath {
+    /// No tree: every primitive, the triangles four at a time (scenes of at most
+    /// [`leaf_prims::MAX_FLAT_PRIMITIVES`] primitives, where a tree does not pay).
+    Flat(FlatPrimitives),
+    /// The tree, with each node's leaf triangles tested together (one entry per node), when
+    /// every leaf holds one primitive (small scenes).
+    NodeTriangles(Vec<NodeTriangles>),
+    /// The tree, leaf by leaf, leaves of two to four triangles tested four wide (large scenes).
+    Leaves,
+}
+
+impl ClosestHitPath {
+    /// The fastest path the scene allows: `prims` are the leaf records in slot order, `bvh`
+    /// the tree over them.
+    pub fn choose(prims: &[LeafPrim], bvh: &Bvh4) -> Self {
+        if let Some(flat) = FlatPrimitives::new(prims) {
+            return ClosestHitPath::Flat(flat);
+        }
+        let quads = node_triangles(prims, bvh);
+        if quads.is_empty() {
+            ClosestHitPath::Leaves
+        } else {
+            ClosestHitPath::NodeTriangles(quads)
+        }
+    }
+}

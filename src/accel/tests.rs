@@ -48,17 +48,14 @@ fn random_ray(set: u64, i: u32) -> (Vec3A, Vec3A, f32) {
     (origin, direction, t_max)
 }
 
-/// The closest hit found by testing every shape.
+/// The closest hit found by the reference path.
 fn brute_force_closest(
     shapes: &[Shape],
     origin: Vec3A,
     direction: Vec3A,
     t_max: f32,
 ) -> Option<(u32, f32)> {
-    (0..shapes.len() as u32)
-        .map(|s| (s, shapes[s as usize].intersect_t(origin, direction, t_max)))
-        .filter(|h| h.1 < f32::INFINITY)
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+    super::reference::closest_hit(shapes.iter().copied(), origin, direction, t_max)
 }
 
 #[test]

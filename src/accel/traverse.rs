@@ -98,6 +98,8 @@ impl BoxRay {
 impl Bvh4 {
     /// Closest hit along `origin + t direction`, `t` in `[0, t_max]`. `intersect(slot, t_max)`
     /// returns the hit distance of a primitive or infinity. Returns the slot and distance.
+    /// (Tests only: the renderer reads leaves through [`Self::closest_hit_by_leaf`].)
+    #[cfg(test)]
     #[inline(always)]
     pub fn closest_hit(
         &self,

@@ -51,7 +51,39 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
     }
 }
 
-/// Collects distinct textures (by pointer) into the flat scene's texture list.
+/// The distinct materials of the scene, with the textures they read.
+#[derive(Default)]
+pub(super) struct MaterialTable {
+    /// Each material's scattering model and textures, in order of first use.
+    materials: Vec<(Bsdf, SurfaceTextures)>,
+    /// The distinct textures.
+    pub(super) interner: TextureInterner,
+}
+
+impl MaterialTable {
+    /// The index of the scene material `m` with its textures, added if new.
+    pub(super) fn index(&mut self, m: &Material, textures: Option<&MaterialTextures>) -> u32 {
+        let surface = self.interner.surface(textures);
+        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
+        let found = self.materials.iter().position(|b| *b == (bsdf, surface));
+        found.unwrap_or_else(|| {
+            self.materials.push((bsdf, surface));
+            self.materials.len() - 1
+        }) as u32
+    }
+
+    /// The scattering models, by index.
+    pub(super) fn bsdfs(&self) -> Vec<Bsdf> {
+        self.materials.iter().map(|m| m.0).collect()
+    }
+
+    /// The textures each material reads, by index.
+    pub(super) fn surface_textures(&self) -> Vec<SurfaceTextures> {
+        self.materials.iter().map(|m| m.1).collect()
+    }
+}
+
+/// Collects distinct textures (by pointer) into the render scene's texture list.
 #[derive(Default)]
 pub(super) struct TextureInterner {
     pub textures: Vec<Arc<Texture>>,

@@ -4,30 +4,96 @@
 //! world-space primitives in BVH order (so the BVH's slots index every per-primitive column
 //! directly, with no indirection), a material table with its textures, a light table (area
 //! and punctual lights), one BVH over all primitives, and, when some triangles bound the
-//! scene, a second over the primitives that can block shadow rays ([`occluders`]). The
-//! renderer's hot loops then assume valid data.
+//! scene, a second over the primitives that can block shadow rays
+//! ([`crate::accel::occluders`]). The renderer's hot loops then assume valid data.
 
-pub mod materials;
+mod camera;
+mod lights;
+mod materials;
+mod meshes;
+mod spheres;
 
-use crate::accel::build as bvh;
-use crate::accel::leaf_prims;
+use crate::accel::ClosestHitPath;
+use crate::accel::build::{self as bvh, Bvh4};
+use crate::accel::leaf_prims::LeafPrim;
 use crate::accel::occluders;
-use crate::bsdf::Bsdf;
 use crate::error::{Error, Result};
-use crate::geometry::{Shape, SphereGeom, TriangleGeom};
-use crate::lights::{AreaLight, DeltaLight, LightTable};
-use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::geometry::Shape;
+use crate::math::{Rgb, Vec2, Vec3, Vec4};
 use crate::render_scene::{NO_EMITTER, RenderScene};
-use crate::scene::{
-    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
-    VertexTangents,
-};
-use crate::texture::{SurfaceTextures, TextureRef, TexturedEmission};
-use materials::{TextureInterner, bsdf_of};
-use obvhs::aabb::Aabb;
+use crate::scene::{Emitter, MaterialTextures, Mesh};
+use crate::texture::TextureRef;
+use materials::MaterialTable;
 use rayon::prelude::*;
 use std::path::Path;
 use std::time::{Duration, Instant};
+
+/// Flattens the world into a [`RenderScene`]. `path` names the scene in errors.
+/// The camera used is the first one (the earliest spawned).
+pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
+    let start = Instant::now();
+    let camera = camera::first_camera(world, path)?;
+
+    // Primitives in flattening order (meshes in query order, their triangles in index order,
+    // then spheres), one group per entity, with the distinct materials they use.
+    let mut materials = MaterialTable::default();
+    let mut prims = Primitives::new(Attributes::of(world));
+    meshes::flatten_meshes(world, path, &mut materials, &mut prims)?;
+    spheres::flatten_spheres(world, path, &mut materials, &mut prims)?;
+
+    // BVH order: every per-primitive column is permuted once, so slots index them directly.
+    let bvh_start = Instant::now();
+    let (bvh, order) = build_bvh(&prims.columns.shapes, path)?;
+    let bvh_build = bvh_start.elapsed();
+
+    // Lights, and the primitives that can block shadow rays (which depend on the lights).
+    let delta_lights = lights::punctual_lights(world, bvh.bounds(), path)?;
+    let occluders = occluders::occluders(&prims.columns.shapes, &delta_lights);
+    let lights = lights::scene_lights(&prims, delta_lights);
+
+    // Per-slot columns.
+    let (material, emitter) = slot_materials_and_lights(&prims.groups, &lights.first_light, &order);
+    // One record per slot, which also gives back the shape (see `RenderScene::shape`): a
+    // second array of the shapes cost 84 MB and 20 ms at 1.3M triangles.
+    let leaf_prims: Vec<LeafPrim> = order
+        .par_iter()
+        .map(|&i| LeafPrim::new(&prims.columns.shapes[i as usize]))
+        .collect();
+    let Primitives {
+        columns,
+        warnings,
+        attributes,
+        ..
+    } = prims;
+    Ok(RenderScene {
+        closest_hit_path: ClosestHitPath::choose(&leaf_prims, &bvh),
+        leaf_prims,
+        vertex_normals: Columns::ordered(&columns.normals, &order),
+        vertex_uvs: Columns::ordered(&columns.uvs, &order),
+        vertex_tangents: if attributes.tangents {
+            Columns::ordered(&columns.tangents, &order)
+        } else {
+            Vec::new()
+        },
+        material,
+        emitter,
+        material_textures: materials.surface_textures(),
+        materials: materials.bsdfs(),
+        textures: materials.interner.textures,
+        lights: lights.table,
+        textured_emission: lights.textured_emission,
+        bvh,
+        occluders,
+        source_index: order,
+        camera,
+        warnings,
+        // Last: the fields above are made in the order written.
+        times: FlattenTimes {
+            bvh_build,
+            total: start.elapsed(),
+        },
+    })
+}
 
 /// How long [`flatten`] took (wall time).
 #[derive(Clone, Copy, Debug, Default)]
@@ -99,158 +165,48 @@ impl Columns {
     }
 }
 
-/// Flattens the world into a [`RenderScene`]. `path` names the scene in errors.
-/// The camera used is the first one (the earliest spawned).
-pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
-    let start = Instant::now();
-    let camera = world
-        .query::<(hecs::Entity, &Camera)>()
-        .iter()
-        .min_by_key(|(e, _)| e.id())
-        .map(|(_, c)| *c)
-        .ok_or_else(|| Error::input(path, None, "the scene has no camera"))?;
-    if !(camera.eye.is_finite() && camera.forward.is_finite() && camera.up.is_finite()) {
-        return Err(Error::input(
-            path,
-            Some("camera".into()),
-            "the camera's position or orientation is not finite",
-        ));
-    }
-    if !(camera.vfov > 0.0 && camera.vfov < std::f32::consts::PI) {
-        return Err(Error::input(
-            path,
-            Some("camera".into()),
-            format!(
-                "the field of view must lie in (0, 180) degrees, got {}",
-                camera.vfov.to_degrees()
-            ),
-        ));
-    }
+/// The primitives in flattening order, as the entities are read.
+struct Primitives {
+    /// One group per entity, in order.
+    groups: Vec<Group>,
+    /// Per primitive, its shape and vertex attributes.
+    columns: Columns,
+    /// Things skipped (degenerate triangles, ...), for the user to see.
+    warnings: Vec<String>,
+    /// Which vertex attributes the scene has.
+    attributes: Attributes,
+}
 
-    let mut materials: Vec<(Bsdf, SurfaceTextures)> = Vec::new();
-    let mut interner = TextureInterner::default();
-    let mut material_index =
-        |m: &Material, textures: Option<&MaterialTextures>, interner: &mut TextureInterner| {
-            let surface = interner.surface(textures);
-            let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
-            let found = materials.iter().position(|b| *b == (bsdf, surface));
-            found.unwrap_or_else(|| {
-                materials.push((bsdf, surface));
-                materials.len() - 1
-            }) as u32
-        };
-    let normal_mapped = world
-        .query::<&MaterialTextures>()
-        .iter()
-        .any(|t| t.normal.is_some());
-    let attributes = Attributes {
-        normals: world.query::<&Mesh>().iter().any(|m| !m.normals.is_empty()),
-        uvs: world.query::<&Mesh>().iter().any(|m| !m.uvs.is_empty()),
-        tangents: normal_mapped,
-    };
-
-    let mut groups: Vec<Group> = Vec::new();
-    let mut columns = Columns::default();
-    let mut warnings = Vec::new();
-    for (name, transform, mesh, material, textures, tangents, emitter) in world
-        .query::<(
-            Option<&Name>,
-            Option<&Transform>,
-            &Mesh,
-            &Material,
-            Option<&MaterialTextures>,
-            Option<&VertexTangents>,
-            Option<&Emitter>,
-        )>()
-        .iter()
-    {
-        let name = name.map_or("unnamed mesh", |n| n.0.as_str());
-        let transform = transform.copied().unwrap_or_default().0;
-        let material = material_index(material, textures, &mut interner);
-        let mut emitter = validate_emitter(emitter, path, name)?;
-        let emission_texture = textures
-            .and_then(|t| t.emissive.as_ref())
-            .filter(|_| emitter.is_some() && !mesh.uvs.is_empty())
-            .map(|slot| (interner.intern(Some(slot)), slot.texture.mean()));
-        if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
-            emitter = None; // a black emission texture: nothing is emitted
-        }
-        let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
-        groups.push(Group {
-            first: columns.shapes.len(),
-            material,
-            emitter,
-            emission_texture,
-        });
-        let skipped = flatten_mesh(
-            mesh,
-            &transform,
-            tangents,
-            path,
-            name,
+impl Primitives {
+    fn new(attributes: Attributes) -> Self {
+        Primitives {
+            groups: Vec::new(),
+            columns: Columns::default(),
+            warnings: Vec::new(),
             attributes,
-            &mut columns,
-        )?;
-        if skipped > 0 {
-            let kind = if emitter.is_some() { " emitting" } else { "" };
-            warnings.push(format!(
-                "mesh '{name}': skipped {skipped} degenerate (zero-area){kind} triangles"
-            ));
         }
     }
-    for (name, transform, sphere, material, emitter) in world
-        .query::<(
-            Option<&Name>,
-            Option<&Transform>,
-            &Sphere,
-            &Material,
-            Option<&Emitter>,
-        )>()
-        .iter()
-    {
-        let name = name.map_or("unnamed sphere", |n| n.0.as_str());
-        let transform = transform.copied().unwrap_or_default().0;
-        let scale = Vec3::new(
-            transform.matrix3.x_axis.length(),
-            transform.matrix3.y_axis.length(),
-            transform.matrix3.z_axis.length(),
-        );
-        if (scale.max_element() - scale.min_element()) > 1e-4 * scale.max_element() {
-            return Err(Error::input(
-                path,
-                Some(format!("sphere '{name}'")),
-                "a sphere's transform must scale uniformly",
-            ));
-        }
-        let geom = SphereGeom {
-            center: transform.translation,
-            radius: sphere.radius * scale.x,
-        };
-        // The bounds too must be finite: the BVH builder cannot order infinite boxes.
-        let reach = geom.center.abs().max_element() + geom.radius;
-        if !(geom.radius > 0.0 && reach.is_finite()) {
-            return Err(Error::input(
-                path,
-                Some(format!("sphere '{name}'")),
-                "radius must be positive and the sphere's bounds finite",
-            ));
-        }
-        let material = material_index(material, None, &mut interner);
-        let emitter = validate_emitter(emitter, path, name)?;
-        groups.push(Group {
-            first: columns.shapes.len(),
-            material,
-            emitter,
-            emission_texture: None,
-        });
-        columns.push_plain(Shape::Sphere(geom), attributes);
-    }
+}
 
-    // BVH order: every per-primitive column is permuted once, so slots index them directly.
-    let bvh_start = Instant::now();
-    let built = bvh::build_bvh(&columns.shapes);
-    let bvh_build = bvh_start.elapsed();
-    let (bvh, order) = built.ok_or_else(|| {
+impl Attributes {
+    /// The attributes of the world's meshes (tangents: when some material has a normal map).
+    fn of(world: &hecs::World) -> Self {
+        let normal_mapped = world
+            .query::<&MaterialTextures>()
+            .iter()
+            .any(|t| t.normal.is_some());
+        Attributes {
+            normals: world.query::<&Mesh>().iter().any(|m| !m.normals.is_empty()),
+            uvs: world.query::<&Mesh>().iter().any(|m| !m.uvs.is_empty()),
+            tangents: normal_mapped,
+        }
+    }
+}
+
+/// The BVH over `shapes` and the map from slots to shapes, or an error for geometry too
+/// degenerate for it.
+fn build_bvh(shapes: &[Shape], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
+    bvh::build_bvh(shapes).ok_or_else(|| {
         Error::input(
             path,
             None,
@@ -259,48 +215,18 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
                 bvh::MAX_DEPTH
             ),
         )
-    })?;
-    let delta_lights = punctual_lights(world, bvh.bounds(), path)?;
-    // Lights come from the primitives, not the slots: light `first_light[g] + k` is the
-    // `k`-th primitive of group `g`.
-    let mut area_lights = Vec::new();
-    let mut textured_emission = Vec::new();
-    let mut first_light = Vec::with_capacity(groups.len());
-    for (g, group) in groups.iter().enumerate() {
-        let Some(emitter) = group.emitter else {
-            first_light.push(NO_EMITTER);
-            continue;
-        };
-        first_light.push(area_lights.len() as u32);
-        let end = groups
-            .get(g + 1)
-            .map_or(columns.shapes.len(), |next| next.first);
-        for prim in group.first..end {
-            let mut radiance = emitter.radiance;
-            // A textured emitter is chosen by its mean radiance; shading applies the texel.
-            textured_emission.push(group.emission_texture.map(|(texture, mean)| {
-                radiance *= mean;
-                TexturedEmission {
-                    texture,
-                    radiance: emitter.radiance,
-                    inverse_mean: materials::inverse_or_zero(mean),
-                    uvs: columns.uvs[prim],
-                }
-            }));
-            let shape = columns.shapes[prim];
-            area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
-        }
-    }
-    let occluders = occluders::occluders(&columns.shapes, &delta_lights);
-    let mut lights = LightTable::new(area_lights, delta_lights);
-    let textured_emission = if textured_emission.iter().any(Option::is_some) {
-        lights.locate_samples_on_triangles();
-        textured_emission
-    } else {
-        Vec::new()
-    };
+    })
+}
+
+/// Per slot (BVH order `order`), the material index and the light index (or [`NO_EMITTER`])
+/// of its primitive.
+fn slot_materials_and_lights(
+    groups: &[Group],
+    first_light: &[u32],
+    order: &[u32],
+) -> (Vec<u32>, Vec<u32>) {
     let group_of = |prim: u32| groups.partition_point(|g| g.first <= prim as usize) - 1;
-    let (material, emitter) = order
+    order
         .par_iter()
         .map(|&prim| {
             let g = group_of(prim);
@@ -310,289 +236,5 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
             };
             (groups[g].material, light)
         })
-        .unzip();
-    // One record per slot, which also gives back the shape (see `RenderScene::shape`): a
-    // second array of the shapes cost 84 MB and 20 ms at 1.3M triangles.
-    let leaf_prims: Vec<leaf_prims::LeafPrim> = order
-        .par_iter()
-        .map(|&i| leaf_prims::LeafPrim::new(&columns.shapes[i as usize]))
-        .collect();
-    Ok(RenderScene {
-        node_triangles: leaf_prims::node_triangles(&leaf_prims, &bvh),
-        flat_primitives: leaf_prims::FlatPrimitives::new(&leaf_prims),
-        leaf_prims,
-        vertex_normals: Columns::ordered(&columns.normals, &order),
-        vertex_uvs: Columns::ordered(&columns.uvs, &order),
-        vertex_tangents: if normal_mapped {
-            Columns::ordered(&columns.tangents, &order)
-        } else {
-            Vec::new()
-        },
-        material,
-        emitter,
-        material_textures: materials.iter().map(|m| m.1).collect(),
-        materials: materials.iter().map(|m| m.0).collect(),
-        textures: interner.textures,
-        lights,
-        textured_emission,
-        bvh,
-        occluders,
-        source_index: order,
-        camera,
-        warnings,
-        // Last: the fields above are made in the order written.
-        times: FlattenTimes {
-            bvh_build,
-            total: start.elapsed(),
-        },
-    })
-}
-
-/// Punctual lights in world space. A directional light's power is taken over the disk that
-/// the scene's bounding sphere casts, so that it is chosen in proportion to what it delivers.
-fn punctual_lights(
-    world: &hecs::World,
-    scene_bounds: Option<Aabb>,
-    path: &Path,
-) -> Result<Vec<DeltaLight>> {
-    let scene_radius = scene_bounds.map_or(1.0, |b| ((b.max - b.min).length() * 0.5).max(1e-3));
-    let mut out = Vec::new();
-    for (name, transform, light) in world
-        .query::<(Option<&Name>, Option<&Transform>, &PunctualLight)>()
-        .iter()
-    {
-        let name = name.map_or("unnamed light", |n| n.0.as_str());
-        let t = transform.copied().unwrap_or_default().0;
-        let position = t.transform_point3a(Vec3A::ZERO);
-        let direction = t.transform_vector3a(Vec3A::NEG_Z).normalize_or_zero();
-        let bad = |m: &str| {
-            Err(Error::input(
-                path,
-                Some(format!("light '{name}'")),
-                m.to_string(),
-            ))
-        };
-        if !position.is_finite() || direction == Vec3A::ZERO {
-            return bad("the light's transform is degenerate");
-        }
-        let delta = match *light {
-            PunctualLight::Point { intensity } => DeltaLight::point(position, intensity),
-            PunctualLight::Spot {
-                intensity,
-                inner_cone,
-                outer_cone,
-            } => {
-                if !(0.0 <= inner_cone
-                    && inner_cone < outer_cone
-                    && outer_cone <= std::f32::consts::FRAC_PI_2)
-                {
-                    return bad("spot cone angles must satisfy 0 <= inner < outer <= pi/2");
-                }
-                DeltaLight::spot(position, direction, intensity, inner_cone, outer_cone)
-            }
-            PunctualLight::Directional { irradiance } => {
-                DeltaLight::directional(direction, irradiance, scene_radius)
-            }
-        };
-        if !(delta.intensity.is_finite() && delta.intensity.min_element() >= 0.0) {
-            return bad("the light's intensity must be finite and non-negative");
-        }
-        if delta.intensity.max_element() > 0.0 {
-            out.push(delta);
-        }
-    }
-    Ok(out)
-}
-
-/// Emitters that emit nothing are dropped; invalid radiance is an error.
-fn validate_emitter(e: Option<&Emitter>, path: &Path, name: &str) -> Result<Option<Emitter>> {
-    match e {
-        Some(e) if !(e.radiance.is_finite() && e.radiance.min_element() >= 0.0) => {
-            Err(Error::input(
-                path,
-                Some(format!("'{name}'")),
-                "emitted radiance must be finite and non-negative",
-            ))
-        }
-        Some(e) if e.radiance == Vec3::ZERO => Ok(None),
-        other => Ok(other.copied()),
-    }
-}
-
-/// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
-/// that `attributes` asks for, zero where the mesh has none); returns how many degenerate
-/// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
-/// with the file's tangents, `Some(None)` to make them per triangle.
-fn flatten_mesh(
-    mesh: &Mesh,
-    world_from_object: &crate::math::Affine3A,
-    tangents: Option<Option<&VertexTangents>>,
-    path: &Path,
-    name: &str,
-    attributes: Attributes,
-    columns: &mut Columns,
-) -> Result<usize> {
-    let at = || Some(format!("mesh '{name}'"));
-    let n = mesh.positions.len();
-    if !mesh.normals.is_empty() && mesh.normals.len() != n {
-        return Err(Error::input(
-            path,
-            at(),
-            format!("{} normals for {n} positions", mesh.normals.len()),
-        ));
-    }
-    if !mesh.uvs.is_empty() && mesh.uvs.len() != n {
-        return Err(Error::input(
-            path,
-            at(),
-            format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
-        ));
-    }
-    if let Some(bad) = mesh.positions.par_iter().position_first(|p| !p.is_finite()) {
-        return Err(Error::input(
-            path,
-            at(),
-            format!("vertex {bad} is not finite"),
-        ));
-    }
-    let normal_matrix = world_from_object.matrix3.inverse().transpose();
-    let flips = world_from_object.matrix3.determinant() < 0.0;
-    let world: Vec<Vec3A> = mesh
-        .positions
-        .par_iter()
-        .map(|&p| world_from_object.transform_point3a(p.into()))
-        .collect();
-    if let Some(bad) = world.par_iter().position_first(|p| !p.is_finite()) {
-        return Err(Error::input(
-            path,
-            at(),
-            format!(
-                "vertex {bad} {} overflows when transformed to world space",
-                mesh.positions[bad]
-            ),
-        ));
-    }
-    // Vertex indices in the winding that keeps the front face under mirroring transforms.
-    let corners = |t: usize| {
-        let [a, b, c] = mesh.indices[t];
-        if flips { [a, c, b] } else { [a, b, c] }
-    };
-    let geometry = |t: usize| {
-        let p = corners(t).map(|i| world[i as usize]);
-        TriangleGeom::new(p[0], p[1], p[2])
-    };
-    // Whether the triangle is kept (else: an index out of range, an area overflowing f32 or
-    // a zero area; the slow path below tells these apart).
-    let kept = |t: usize| {
-        corners(t).iter().all(|&i| (i as usize) < n) && {
-            let double_area = geometry(t).normal_unnormalized().length();
-            double_area > 0.0 && double_area.is_finite()
-        }
-    };
-
-    // --- Which triangles are kept: in the common case all, found by one parallel count.
-    let count = mesh.indices.len();
-    let kept_count = (0..count).into_par_iter().filter(|&t| kept(t)).count();
-    let kept_triangles: Option<Vec<u32>> = if kept_count == count {
-        None
-    } else {
-        for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
-            if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
-                return Err(Error::input(
-                    path,
-                    at(),
-                    format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
-                ));
-            }
-            if !geometry(t).normal_unnormalized().length().is_finite() {
-                // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
-                // the triangle cannot be intersected or sampled, and skipping it would change
-                // the image.
-                let p = corners(t).map(|i| Vec3::from(world[i as usize]));
-                return Err(Error::input(
-                    path,
-                    at(),
-                    format!(
-                        "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
-                         are too far apart (scale the model down)",
-                        p[0], p[1], p[2]
-                    ),
-                ));
-            }
-        }
-        Some(
-            (0..count as u32)
-                .into_par_iter()
-                .filter(|&t| kept(t as usize))
-                .collect(),
-        )
-    };
-    // Appends `attribute(t)` for every kept triangle `t` to `column`.
-    fn extend<T: Send>(
-        column: &mut Vec<T>,
-        kept_triangles: &Option<Vec<u32>>,
-        count: usize,
-        attribute: impl Fn(usize) -> T + Sync + Send,
-    ) {
-        match kept_triangles {
-            None => column.par_extend((0..count).into_par_iter().map(attribute)),
-            Some(kept) => column.par_extend(kept.par_iter().map(|&t| attribute(t as usize))),
-        }
-    }
-
-    // --- Geometry and vertex attributes of the kept triangles, written in place.
-    extend(&mut columns.shapes, &kept_triangles, count, |t| {
-        Shape::Triangle(geometry(t))
-    });
-    let normals = |t: usize| {
-        if mesh.normals.is_empty() {
-            return [Vec3::ZERO; 3];
-        }
-        let normals = corners(t).map(|i| {
-            Vec3::from(normal_matrix * Vec3A::from(mesh.normals[i as usize])).normalize_or_zero()
-        });
-        // A shading normal that could not be normalised falls back to flat shading.
-        if normals.contains(&Vec3::ZERO) {
-            [Vec3::ZERO; 3]
-        } else {
-            normals
-        }
-    };
-    let uvs = |t: usize| {
-        if mesh.uvs.is_empty() {
-            [Vec2::ZERO; 3]
-        } else {
-            corners(t).map(|i| mesh.uvs[i as usize])
-        }
-    };
-    if attributes.normals {
-        extend(&mut columns.normals, &kept_triangles, count, normals);
-    }
-    if attributes.uvs {
-        extend(&mut columns.uvs, &kept_triangles, count, uvs);
-    }
-    if attributes.tangents {
-        // Tangents: the file's (the linear part carries them; a mirroring transform flips
-        // the handedness), else one per triangle from the UVs.
-        let tangents = |t: usize| match tangents {
-            None => [Vec4::ZERO; 3],
-            Some(Some(VertexTangents(tangents)))
-                if tangents.len() == n && normals(t)[0] != Vec3::ZERO =>
-            {
-                corners(t).map(|i| {
-                    let t = tangents[i as usize];
-                    let xyz = world_from_object.matrix3 * Vec3A::from(t.truncate());
-                    let w = if (t.w < 0.0) != flips { -1.0 } else { 1.0 };
-                    xyz.normalize_or_zero().extend(w)
-                })
-            }
-            Some(_) => {
-                let p = corners(t).map(|i| world[i as usize]);
-                let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-                [materials::triangle_tangent(p, uvs(t), n); 3]
-            }
-        };
-        extend(&mut columns.tangents, &kept_triangles, count, tangents);
-    }
-    Ok(count - kept_count)
+        .unzip()
 }

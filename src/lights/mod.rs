@@ -1,6 +1,14 @@
 //! The light table: every emitting primitive (sampled uniformly by area, the seed's equation
 //! 16 generalised to many emitters) and every punctual light (point, spot, directional; delta
-//! lights reached only by next-event estimation), each chosen in proportion to its power.
+//! lights reached only by next-event estimation, see [`punctual`]), each chosen in proportion
+//! to its power, and sampled four lanes at a time; a scene lit by one area light takes the
+//! fast path of [`single`].
+
+mod punctual;
+mod single;
+
+pub use punctual::{DeltaKind, DeltaLight};
+use single::{SingleLight, single_light};
 
 use crate::geometry::Shape;
 use crate::geometry::triangle::TriangleGeom;
@@ -44,86 +52,6 @@ impl AreaLight {
             normal,
             select_probability: 0.0,
             pdf_area: 0.0,
-        }
-    }
-}
-
-/// A punctual light: a point, spot or directional light of zero size. Rays never hit it.
-#[derive(Clone, Copy, Debug)]
-pub struct DeltaLight {
-    /// Where it is and which way it shines.
-    pub kind: DeltaKind,
-    /// Radiant intensity (W/sr) of point and spot lights; irradiance (W/m^2) of directional ones.
-    pub intensity: Rgb,
-    /// Emitted power (luminance-weighted), for the choice among lights.
-    pub power: f32,
-    /// Probability of choosing this light.
-    pub select_probability: f32,
-}
-
-/// Geometry of a [`DeltaLight`], world space.
-#[derive(Clone, Copy, Debug)]
-pub enum DeltaKind {
-    /// Shines equally in every direction from `position`.
-    Point {
-        /// Position.
-        position: Vec3A,
-    },
-    /// Shines from `position` into a cone about `direction`, with glTF's smooth falloff
-    /// between the inner and outer cone (`attenuation = clamp((cos - cos_outer) / (cos_inner - cos_outer))^2`).
-    Spot {
-        /// Position.
-        position: Vec3A,
-        /// Axis of the cone (unit).
-        direction: Vec3A,
-        /// Cosine of the inner cone angle.
-        cos_inner: f32,
-        /// Cosine of the outer cone angle.
-        cos_outer: f32,
-    },
-    /// Parallel light travelling along `direction` (unit).
-    Directional {
-        /// Direction the light travels in.
-        direction: Vec3A,
-    },
-}
-
-impl DeltaLight {
-    /// A point light of intensity `intensity` W/sr.
-    pub fn point(position: Vec3A, intensity: Rgb) -> Self {
-        DeltaLight {
-            kind: DeltaKind::Point { position },
-            intensity,
-            power: 4.0 * PI * luminance(intensity),
-            select_probability: 0.0,
-        }
-    }
-
-    /// A spot light; cone angles in radians from the axis.
-    pub fn spot(position: Vec3A, direction: Vec3A, intensity: Rgb, inner: f32, outer: f32) -> Self {
-        let (cos_inner, cos_outer) = (inner.cos(), outer.cos());
-        DeltaLight {
-            kind: DeltaKind::Spot {
-                position,
-                direction,
-                cos_inner,
-                cos_outer,
-            },
-            intensity,
-            // The solid angle of the cone halfway between the inner and outer angles.
-            power: 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * luminance(intensity),
-            select_probability: 0.0,
-        }
-    }
-
-    /// A directional light of irradiance `irradiance` W/m^2; its power is what falls on the
-    /// disk of radius `scene_radius` (the scene's bounding sphere) facing it.
-    pub fn directional(direction: Vec3A, irradiance: Rgb, scene_radius: f32) -> Self {
-        DeltaLight {
-            kind: DeltaKind::Directional { direction },
-            intensity: irradiance,
-            power: PI * scene_radius * scene_radius * luminance(irradiance),
-            select_probability: 0.0,
         }
     }
 }
@@ -231,14 +159,6 @@ impl LightSamples {
     }
 }
 
-/// What a punctual light sends toward a point: the direction to it, its distance and the
-/// incident radiance over the probability of choosing the light.
-struct PunctualSample {
-    wi: Vec3A,
-    distance: f32,
-    weight: Rgb,
-}
-
 /// [`LightPoints::area_light`] of a punctual light.
 pub const NOT_AREA_LIGHT: u32 = u32::MAX;
 
@@ -262,27 +182,6 @@ pub struct LightTable {
     single: Option<SingleLight>,
 }
 
-/// The scene's only light, when it is one triangle, or two triangles of one emitter that
-/// make a parallelogram (a quad light, as the seed room's and most modelled area lights
-/// are), sampled uniformly by area like its triangles. Every lane samples it, so its data
-/// are splatted once instead of gathered lane by lane, and a parallelogram needs neither the
-/// choice of a triangle nor the triangle warp: the seed room's shade stage runs a quarter
-/// fewer instructions.
-#[derive(Clone, Copy, Debug)]
-struct SingleLight {
-    /// Points are `corner + b1 edges[0] + b2 edges[1]`. Every vector here is one value in
-    /// all lanes, by axis or channel.
-    corner: [Vec4; 3],
-    edges: [[Vec4; 3]; 2],
-    /// Whether `(b1, b2)` covers the unit square (a parallelogram), or the unit triangle.
-    parallelogram: bool,
-    normal: [Vec4; 3],
-    pdf_area: Vec4,
-    radiance: [Vec4; 3],
-    /// 1 if the light shines both ways, else 0.
-    two_sided: Vec4,
-}
-
 /// A plane of one-sided triangle lights, which emit toward `normal`: `normal . x = offset`.
 #[derive(Clone, Copy, Debug)]
 struct EmittingPlane {
@@ -300,88 +199,6 @@ const MAX_EMITTING_PLANES: usize = 8;
 /// [`LightTable::all_behind`]: far more than the rounding of a light sample's direction,
 /// so that no sample it skips could have had a positive cosine at the light.
 const BEHIND_MARGIN: f32 = 1e-4;
-
-/// The [`SingleLight`] of a table of area lights `lights` and punctual lights `delta_lights`,
-/// if it has one.
-fn single_light(lights: &[AreaLight], delta_lights: &[DeltaLight]) -> Option<SingleLight> {
-    if !delta_lights.is_empty() {
-        return None;
-    }
-    let triangle = |light: &AreaLight| match light.shape {
-        Shape::Triangle(t) => Some(t),
-        Shape::Sphere(_) => None,
-    };
-    // Splatted, by axis or channel; `source` gives the normal, radiance and sides.
-    let lanes = |v: Vec3A| v.to_array().map(Vec4::splat);
-    let light =
-        |source: &AreaLight, corner, [e1, e2]: [Vec3A; 2], parallelogram, pdf_area| SingleLight {
-            corner: lanes(corner),
-            edges: [lanes(e1), lanes(e2)],
-            parallelogram,
-            normal: lanes(source.normal),
-            pdf_area: Vec4::splat(pdf_area),
-            radiance: source.radiance.to_array().map(Vec4::splat),
-            two_sided: Vec4::splat(if source.two_sided { 1.0 } else { 0.0 }),
-        };
-    match lights {
-        [only] => {
-            let t = triangle(only)?;
-            Some(light(only, t.v0, [t.e1, t.e2], false, only.pdf_area))
-        }
-        [a, b] if a.radiance == b.radiance && a.two_sided == b.two_sided => {
-            let (t, u) = (triangle(a)?, triangle(b)?);
-            let (corner, edges) = parallelogram_of(t, u)?;
-            // Same emitting side; the density is that of choosing a triangle by area and a
-            // point on it uniformly: one over the whole area.
-            let pdf_area = 1.0 / (a.area + b.area);
-            (a.normal.dot(b.normal) > 1.0 - 1e-6).then(|| light(a, corner, edges, true, pdf_area))
-        }
-        _ => None,
-    }
-}
-
-/// The corner and edges of the parallelogram that triangles `t` and `u` make, if they share an
-/// edge (vertices `p` and `r`) and their other vertices `q` and `s` make it a parallelogram,
-/// `q + s = p + r`, all to a rounding margin (the vertices are rebuilt from the edges).
-fn parallelogram_of(t: TriangleGeom, u: TriangleGeom) -> Option<(Vec3A, [Vec3A; 2])> {
-    let (tv, uv) = (t.vertices(), u.vertices());
-    let extent = (tv.into_iter().chain(uv)).fold(0.0, |e: f32, v| e.max(v.abs().max_element()));
-    let same = |a: Vec3A, b: Vec3A| (a - b).abs().max_element() <= 1e-6 * extent;
-    (0..3).find_map(|k| {
-        let (q, p, r) = (tv[k], tv[(k + 1) % 3], tv[(k + 2) % 3]);
-        let shared = |v: Vec3A| uv.iter().any(|&w| same(v, w));
-        let s = uv.into_iter().find(|&w| !same(w, p) && !same(w, r))?;
-        (shared(p) && shared(r) && same(q + s, p + r)).then_some((q, [p - q, r - q]))
-    })
-}
-
-impl SingleLight {
-    /// Four samples seen from `p`, lane `k` at `(u[0][k], u[1][k])` in the unit square.
-    #[inline(always)]
-    fn sample(&self, p: Vec3A, u: [Vec4; 2]) -> (LightSamples, LightPoints) {
-        let b = if self.parallelogram {
-            u
-        } else {
-            sample_triangle(u)
-        };
-        // The same operations in the same order as a triangle's `point`, lane by lane.
-        let [e1, e2] = self.edges;
-        let point = [0, 1, 2].map(|axis| self.corner[axis] + b[0] * e1[axis] + b[1] * e2[axis]);
-        let samples = samples_toward(
-            p,
-            point,
-            self.normal,
-            self.pdf_area,
-            self.radiance,
-            self.two_sided,
-        );
-        let points = LightPoints {
-            area_light: [0; LIGHT_LANES],
-            barycentric: b,
-        };
-        (samples, points)
-    }
-}
 
 /// Light samples seen from `p` of points `point` (by axis, lane `k` being sample `k`) on
 /// lights of unit normal `normal`, area density `pdf_area`, radiance `radiance`, and
@@ -650,50 +467,6 @@ impl LightTable {
             radiance: radiance.map(Vec4::from_array),
             scale: Vec4::ONE,
             pdf_solid_angle: Vec4::INFINITY,
-        }
-    }
-}
-
-impl DeltaLight {
-    /// The light's sample as seen from `p` (there is only one direction to it).
-    #[inline]
-    fn sample_from(&self, p: Vec3A) -> PunctualSample {
-        let inv_p = 1.0 / self.select_probability;
-        let towards = |position: Vec3A| {
-            let to_light = position - p;
-            let d2 = to_light.length_squared();
-            let d = d2.sqrt();
-            (to_light / d, d, if d2 > 0.0 { inv_p / d2 } else { 0.0 })
-        };
-        match self.kind {
-            DeltaKind::Point { position } => {
-                let (wi, distance, w) = towards(position);
-                PunctualSample {
-                    wi,
-                    distance,
-                    weight: self.intensity * w,
-                }
-            }
-            DeltaKind::Spot {
-                position,
-                direction,
-                cos_inner,
-                cos_outer,
-            } => {
-                let (wi, distance, w) = towards(position);
-                let cos = -wi.dot(direction);
-                let t = ((cos - cos_outer) / (cos_inner - cos_outer).max(1e-3)).clamp(0.0, 1.0);
-                PunctualSample {
-                    wi,
-                    distance,
-                    weight: self.intensity * (w * t * t),
-                }
-            }
-            DeltaKind::Directional { direction } => PunctualSample {
-                wi: -direction,
-                distance: f32::INFINITY,
-                weight: self.intensity * inv_p,
-            },
         }
     }
 }

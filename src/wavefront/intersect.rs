@@ -1,7 +1,6 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
-use crate::geometry::Shape;
 use crate::math::Vec2;
 use crate::render_scene::{RenderScene, TraversalStack};
 
@@ -18,16 +17,9 @@ pub fn intersect_closest(scene: &RenderScene, rays: &RayBatch, hits: &mut HitBat
             .closest_hit(&mut stack, origin, direction, f32::INFINITY)
             .unwrap_or((NO_HIT, f32::INFINITY));
         (hits.slot[i], hits.t[i]) = (slot, t);
-        if let Some(Shape::Triangle(tri)) = scene.leaf_prims.get(slot as usize).map(|p| p.shape()) {
+        if slot != NO_HIT {
             // Barycentrics only for the winner; the traversal computed them for every candidate.
-            hits.barycentric[i] = crate::geometry::triangle::intersect_triangle(
-                &tri,
-                origin,
-                direction,
-                0.0,
-                f32::INFINITY,
-            )
-            .map_or(Vec2::ZERO, |h| h.1);
+            hits.barycentric[i] = scene.shape(slot as usize).barycentric(origin, direction);
         }
     }
 }

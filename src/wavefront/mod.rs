@@ -10,6 +10,7 @@
 pub mod batch;
 pub mod generate;
 pub mod intersect;
+mod next_event;
 pub mod shade;
 pub mod shadow;
 pub mod stats;

@@ -1,11 +1,11 @@
 //! Texture lookups at a hit, for the shade stage: base colour, metallic-roughness and normal
 //! maps change the material and shading normal; emission textures change the radiance a light
 //! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
-//! flat scene; nothing allocates.
+//! render scene; nothing allocates.
 
 use crate::bsdf::Bsdf;
 use crate::lights::{LightPoints, LightSamples};
-use crate::math::{Rgb, Vec2, Vec3A, Vec4};
+use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::render_scene::RenderScene;
 use crate::texture::{SurfaceTextures, TextureRef};
 
@@ -23,6 +23,20 @@ where
 #[inline]
 fn lookup(scene: &RenderScene, t: &TextureRef, uv: Vec2) -> Rgb {
     scene.textures[t.texture as usize].lookup(t.uv_transform.apply(uv))
+}
+
+/// The shading normal at barycentrics `b` of the primitive in `slot`, whose unit geometric
+/// normal is `ng`: the vertex normals interpolated and turned to `ng`'s side (the geometric
+/// normal decides the sides), or `ng` itself where the primitive has none (flat-shaded
+/// triangles, spheres).
+#[inline(always)]
+pub(super) fn shading_normal(scene: &RenderScene, slot: usize, b: Vec2, ng: Vec3A) -> Vec3A {
+    let [n0, n1, n2] = scene.vertex_normals[slot];
+    if n0 == Vec3::ZERO {
+        return ng;
+    }
+    let ns = Vec3A::from(n0 * (1.0 - b.x - b.y) + n1 * b.x + n2 * b.y).normalize_or(ng);
+    if ns.dot(ng) < 0.0 { -ns } else { ns }
 }
 
 /// The material of a hit on `slot` at barycentrics `b`, with its textures applied, and the

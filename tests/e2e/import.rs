@@ -11,7 +11,7 @@
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use wavetrace::geometry::Shape;
+use wavetrace::internals::Shape;
 use wavetrace::math::{Rgb, Vec3};
 use wavetrace::scene::load::{
     LoadOptions, ROOM_FREE_FLOOR_CENTRE, UpAxis, bounding_box, has_lights, import_model,
@@ -216,7 +216,7 @@ fn blender_gltf_export_gives_the_documented_scene() {
     let flat = flatten(&with_camera(scene_world_clone(&path)), &path).unwrap();
     // Rendered as the README promises: diffuse ones exactly Lambertian, the mirror and the
     // glass exactly the seed's delta materials.
-    use wavetrace::bsdf::Bsdf;
+    use wavetrace::internals::Bsdf;
     let mut kinds: Vec<&str> = flat
         .materials
         .iter()
@@ -633,7 +633,7 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
         "clamp to edge"
     );
     assert!(
-        matches!(flat.materials[0], wavetrace::bsdf::Bsdf::Lambertian { albedo } if albedo == Rgb::new(0.5, 1.0, 1.0))
+        matches!(flat.materials[0], wavetrace::internals::Bsdf::Lambertian { albedo } if albedo == Rgb::new(0.5, 1.0, 1.0))
     );
 }
 

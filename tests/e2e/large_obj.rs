@@ -63,9 +63,9 @@ fn load_a_million_line_obj() {
     let after = peak_rss();
     // The room's own primitives come with the grid.
     assert!(
-        flat.leaf_prims.len() >= triangles,
+        flat.primitive_count() >= triangles,
         "{}",
-        flat.leaf_prims.len()
+        flat.primitive_count()
     );
     if let (Some(before), Some(after)) = (before, after) {
         let grown = after.saturating_sub(before);

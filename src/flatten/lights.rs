@@ -1,0 +1,146 @@
+//! Lights: one area light per primitive of each emitting entity, the punctual lights in
+//! world space, and the light table over both.
+
+use super::Primitives;
+use super::materials;
+use crate::error::{Error, Result};
+use crate::lights::{AreaLight, DeltaLight, LightTable};
+use crate::math::{Vec3, Vec3A};
+use crate::render_scene::NO_EMITTER;
+use crate::scene::{Emitter, Name, PunctualLight, Transform};
+use crate::texture::TexturedEmission;
+use obvhs::aabb::Aabb;
+use std::path::Path;
+
+/// The scene's lights: the table, the emission textures of its area lights (empty when none
+/// has one), and per group its first light (or [`NO_EMITTER`]).
+pub(super) struct SceneLights {
+    pub(super) table: LightTable,
+    pub(super) textured_emission: Vec<Option<TexturedEmission>>,
+    /// Lights come from the primitives, not the slots: light `first_light[g] + k` is the
+    /// `k`-th primitive of group `g`.
+    pub(super) first_light: Vec<u32>,
+}
+
+/// The light table over the emitting primitives of `prims` and the punctual lights
+/// `delta_lights`.
+pub(super) fn scene_lights(prims: &Primitives, delta_lights: Vec<DeltaLight>) -> SceneLights {
+    let Primitives {
+        groups, columns, ..
+    } = prims;
+    let mut area_lights = Vec::new();
+    let mut textured_emission = Vec::new();
+    let mut first_light = Vec::with_capacity(groups.len());
+    for (g, group) in groups.iter().enumerate() {
+        let Some(emitter) = group.emitter else {
+            first_light.push(NO_EMITTER);
+            continue;
+        };
+        first_light.push(area_lights.len() as u32);
+        let end = groups
+            .get(g + 1)
+            .map_or(columns.shapes.len(), |next| next.first);
+        for prim in group.first..end {
+            let mut radiance = emitter.radiance;
+            // A textured emitter is chosen by its mean radiance; shading applies the texel.
+            textured_emission.push(group.emission_texture.map(|(texture, mean)| {
+                radiance *= mean;
+                TexturedEmission {
+                    texture,
+                    radiance: emitter.radiance,
+                    inverse_mean: materials::inverse_or_zero(mean),
+                    uvs: columns.uvs[prim],
+                }
+            }));
+            let shape = columns.shapes[prim];
+            area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
+        }
+    }
+    let mut lights = LightTable::new(area_lights, delta_lights);
+    let textured_emission = if textured_emission.iter().any(Option::is_some) {
+        lights.locate_samples_on_triangles();
+        textured_emission
+    } else {
+        Vec::new()
+    };
+    SceneLights {
+        table: lights,
+        textured_emission,
+        first_light,
+    }
+}
+
+/// Punctual lights in world space. A directional light's power is taken over the disk that
+/// the scene's bounding sphere casts, so that it is chosen in proportion to what it delivers.
+pub(super) fn punctual_lights(
+    world: &hecs::World,
+    scene_bounds: Option<Aabb>,
+    path: &Path,
+) -> Result<Vec<DeltaLight>> {
+    let scene_radius = scene_bounds.map_or(1.0, |b| ((b.max - b.min).length() * 0.5).max(1e-3));
+    let mut out = Vec::new();
+    for (name, transform, light) in world
+        .query::<(Option<&Name>, Option<&Transform>, &PunctualLight)>()
+        .iter()
+    {
+        let name = name.map_or("unnamed light", |n| n.0.as_str());
+        let t = transform.copied().unwrap_or_default().0;
+        let position = t.transform_point3a(Vec3A::ZERO);
+        let direction = t.transform_vector3a(Vec3A::NEG_Z).normalize_or_zero();
+        let bad = |m: &str| {
+            Err(Error::input(
+                path,
+                Some(format!("light '{name}'")),
+                m.to_string(),
+            ))
+        };
+        if !position.is_finite() || direction == Vec3A::ZERO {
+            return bad("the light's transform is degenerate");
+        }
+        let delta = match *light {
+            PunctualLight::Point { intensity } => DeltaLight::point(position, intensity),
+            PunctualLight::Spot {
+                intensity,
+                inner_cone,
+                outer_cone,
+            } => {
+                if !(0.0 <= inner_cone
+                    && inner_cone < outer_cone
+                    && outer_cone <= std::f32::consts::FRAC_PI_2)
+                {
+                    return bad("spot cone angles must satisfy 0 <= inner < outer <= pi/2");
+                }
+                DeltaLight::spot(position, direction, intensity, inner_cone, outer_cone)
+            }
+            PunctualLight::Directional { irradiance } => {
+                DeltaLight::directional(direction, irradiance, scene_radius)
+            }
+        };
+        if !(delta.intensity.is_finite() && delta.intensity.min_element() >= 0.0) {
+            return bad("the light's intensity must be finite and non-negative");
+        }
+        if delta.intensity.max_element() > 0.0 {
+            out.push(delta);
+        }
+    }
+    Ok(out)
+}
+
+/// Emitters that emit nothing are dropped; invalid radiance is an error.
+pub(super) fn validate_emitter(
+    e: Option<&Emitter>,
+    path: &Path,
+    name: &str,
+) -> Result<Option<Emitter>> {
+    match e {
+        Some(e) if !(e.radiance.is_finite() && e.radiance.min_element() >= 0.0) => {
+            Err(Error::input(
+                path,
+                Some(format!("'{name}'")),
+                "emitted radiance must be finite and non-negative",
+            ))
+        }
+        Some(e) if e.radiance == Vec3::ZERO => Ok(None),
+        other => Ok(other.copied()),
+    }
+}

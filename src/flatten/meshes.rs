@@ -1,0 +1,247 @@
+//! Meshes: each mesh's triangles in world space (the winding kept under mirroring
+//! transforms), with their vertex attributes (shading normals, texture coordinates, tangents
+//! for normal maps); degenerate triangles are skipped with a warning.
+
+use super::lights::validate_emitter;
+use super::materials::{self, MaterialTable};
+use super::{Attributes, Columns, Group, Primitives};
+use crate::error::{Error, Result};
+use crate::geometry::{Shape, TriangleGeom};
+use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::scene::{Emitter, Material, MaterialTextures, Mesh, Name, Transform, VertexTangents};
+use rayon::prelude::*;
+use std::path::Path;
+
+/// Appends every mesh of the world to `prims` (one group per mesh), its material to
+/// `materials`.
+pub(super) fn flatten_meshes(
+    world: &hecs::World,
+    path: &Path,
+    materials: &mut MaterialTable,
+    prims: &mut Primitives,
+) -> Result<()> {
+    let Primitives {
+        groups,
+        columns,
+        warnings,
+        attributes,
+    } = prims;
+    let attributes = *attributes;
+    for (name, transform, mesh, material, textures, tangents, emitter) in world
+        .query::<(
+            Option<&Name>,
+            Option<&Transform>,
+            &Mesh,
+            &Material,
+            Option<&MaterialTextures>,
+            Option<&VertexTangents>,
+            Option<&Emitter>,
+        )>()
+        .iter()
+    {
+        let name = name.map_or("unnamed mesh", |n| n.0.as_str());
+        let transform = transform.copied().unwrap_or_default().0;
+        let material = materials.index(material, textures);
+        let mut emitter = validate_emitter(emitter, path, name)?;
+        let emission_texture = textures
+            .and_then(|t| t.emissive.as_ref())
+            .filter(|_| emitter.is_some() && !mesh.uvs.is_empty())
+            .map(|slot| (materials.interner.intern(Some(slot)), slot.texture.mean()));
+        if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
+            emitter = None; // a black emission texture: nothing is emitted
+        }
+        let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
+        groups.push(Group {
+            first: columns.shapes.len(),
+            material,
+            emitter,
+            emission_texture,
+        });
+        let skipped = flatten_mesh(mesh, &transform, tangents, path, name, attributes, columns)?;
+        if skipped > 0 {
+            let kind = if emitter.is_some() { " emitting" } else { "" };
+            warnings.push(format!(
+                "mesh '{name}': skipped {skipped} degenerate (zero-area){kind} triangles"
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
+/// that `attributes` asks for, zero where the mesh has none); returns how many degenerate
+/// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
+/// with the file's tangents, `Some(None)` to make them per triangle.
+fn flatten_mesh(
+    mesh: &Mesh,
+    world_from_object: &crate::math::Affine3A,
+    tangents: Option<Option<&VertexTangents>>,
+    path: &Path,
+    name: &str,
+    attributes: Attributes,
+    columns: &mut Columns,
+) -> Result<usize> {
+    let at = || Some(format!("mesh '{name}'"));
+    let n = mesh.positions.len();
+    if !mesh.normals.is_empty() && mesh.normals.len() != n {
+        return Err(Error::input(
+            path,
+            at(),
+            format!("{} normals for {n} positions", mesh.normals.len()),
+        ));
+    }
+    if !mesh.uvs.is_empty() && mesh.uvs.len() != n {
+        return Err(Error::input(
+            path,
+            at(),
+            format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
+        ));
+    }
+    if let Some(bad) = mesh.positions.par_iter().position_first(|p| !p.is_finite()) {
+        return Err(Error::input(
+            path,
+            at(),
+            format!("vertex {bad} is not finite"),
+        ));
+    }
+    let normal_matrix = world_from_object.matrix3.inverse().transpose();
+    let flips = world_from_object.matrix3.determinant() < 0.0;
+    let world: Vec<Vec3A> = mesh
+        .positions
+        .par_iter()
+        .map(|&p| world_from_object.transform_point3a(p.into()))
+        .collect();
+    if let Some(bad) = world.par_iter().position_first(|p| !p.is_finite()) {
+        return Err(Error::input(
+            path,
+            at(),
+            format!(
+                "vertex {bad} {} overflows when transformed to world space",
+                mesh.positions[bad]
+            ),
+        ));
+    }
+    // Vertex indices in the winding that keeps the front face under mirroring transforms.
+    let corners = |t: usize| {
+        let [a, b, c] = mesh.indices[t];
+        if flips { [a, c, b] } else { [a, b, c] }
+    };
+    let geometry = |t: usize| {
+        let p = corners(t).map(|i| world[i as usize]);
+        TriangleGeom::new(p[0], p[1], p[2])
+    };
+    // Whether the triangle is kept (else: an index out of range, an area overflowing f32 or
+    // a zero area; the slow path below tells these apart).
+    let kept = |t: usize| {
+        corners(t).iter().all(|&i| (i as usize) < n) && {
+            let double_area = geometry(t).normal_unnormalized().length();
+            double_area > 0.0 && double_area.is_finite()
+        }
+    };
+
+    // --- Which triangles are kept: in the common case all, found by one parallel count.
+    let count = mesh.indices.len();
+    let kept_count = (0..count).into_par_iter().filter(|&t| kept(t)).count();
+    let kept_triangles: Option<Vec<u32>> = if kept_count == count {
+        None
+    } else {
+        for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
+            if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
+                ));
+            }
+            if !geometry(t).normal_unnormalized().length().is_finite() {
+                // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
+                // the triangle cannot be intersected or sampled, and skipping it would change
+                // the image.
+                let p = corners(t).map(|i| Vec3::from(world[i as usize]));
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!(
+                        "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
+                         are too far apart (scale the model down)",
+                        p[0], p[1], p[2]
+                    ),
+                ));
+            }
+        }
+        Some(
+            (0..count as u32)
+                .into_par_iter()
+                .filter(|&t| kept(t as usize))
+                .collect(),
+        )
+    };
+    // Appends `attribute(t)` for every kept triangle `t` to `column`.
+    fn extend<T: Send>(
+        column: &mut Vec<T>,
+        kept_triangles: &Option<Vec<u32>>,
+        count: usize,
+        attribute: impl Fn(usize) -> T + Sync + Send,
+    ) {
+        match kept_triangles {
+            None => column.par_extend((0..count).into_par_iter().map(attribute)),
+            Some(kept) => column.par_extend(kept.par_iter().map(|&t| attribute(t as usize))),
+        }
+    }
+
+    // --- Geometry and vertex attributes of the kept triangles, written in place.
+    extend(&mut columns.shapes, &kept_triangles, count, |t| {
+        Shape::Triangle(geometry(t))
+    });
+    let normals = |t: usize| {
+        if mesh.normals.is_empty() {
+            return [Vec3::ZERO; 3];
+        }
+        let normals = corners(t).map(|i| {
+            Vec3::from(normal_matrix * Vec3A::from(mesh.normals[i as usize])).normalize_or_zero()
+        });
+        // A shading normal that could not be normalised falls back to flat shading.
+        if normals.contains(&Vec3::ZERO) {
+            [Vec3::ZERO; 3]
+        } else {
+            normals
+        }
+    };
+    let uvs = |t: usize| {
+        if mesh.uvs.is_empty() {
+            [Vec2::ZERO; 3]
+        } else {
+            corners(t).map(|i| mesh.uvs[i as usize])
+        }
+    };
+    if attributes.normals {
+        extend(&mut columns.normals, &kept_triangles, count, normals);
+    }
+    if attributes.uvs {
+        extend(&mut columns.uvs, &kept_triangles, count, uvs);
+    }
+    if attributes.tangents {
+        // Tangents: the file's (the linear part carries them; a mirroring transform flips
+        // the handedness), else one per triangle from the UVs.
+        let tangents = |t: usize| match tangents {
+            None => [Vec4::ZERO; 3],
+            Some(Some(VertexTangents(tangents)))
+                if tangents.len() == n && normals(t)[0] != Vec3::ZERO =>
+            {
+                corners(t).map(|i| {
+                    let t = tangents[i as usize];
+                    let xyz = world_from_object.matrix3 * Vec3A::from(t.truncate());
+                    let w = if (t.w < 0.0) != flips { -1.0 } else { 1.0 };
+                    xyz.normalize_or_zero().extend(w)
+                })
+            }
+            Some(_) => {
+                let p = corners(t).map(|i| world[i as usize]);
+                let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+                [materials::triangle_tangent(p, uvs(t), n); 3]
+            }
+        };
+        extend(&mut columns.tangents, &kept_triangles, count, tangents);
+    }
+    Ok(count - kept_count)
+}

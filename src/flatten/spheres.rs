@@ -1,0 +1,76 @@
+//! Analytic spheres: centre and radius in world space (their transforms must scale
+//! uniformly), with bounds the BVH builder can order.
+
+use super::lights::validate_emitter;
+use super::materials::MaterialTable;
+use super::{Group, Primitives};
+use crate::error::{Error, Result};
+use crate::geometry::{Shape, SphereGeom};
+use crate::math::Vec3;
+use crate::scene::{Emitter, Material, Name, Sphere, Transform};
+use std::path::Path;
+
+/// Appends every sphere of the world to `prims` (one group each), its material to
+/// `materials`.
+pub(super) fn flatten_spheres(
+    world: &hecs::World,
+    path: &Path,
+    materials: &mut MaterialTable,
+    prims: &mut Primitives,
+) -> Result<()> {
+    let Primitives {
+        groups,
+        columns,
+        attributes,
+        ..
+    } = prims;
+    let attributes = *attributes;
+    for (name, transform, sphere, material, emitter) in world
+        .query::<(
+            Option<&Name>,
+            Option<&Transform>,
+            &Sphere,
+            &Material,
+            Option<&Emitter>,
+        )>()
+        .iter()
+    {
+        let name = name.map_or("unnamed sphere", |n| n.0.as_str());
+        let transform = transform.copied().unwrap_or_default().0;
+        let scale = Vec3::new(
+            transform.matrix3.x_axis.length(),
+            transform.matrix3.y_axis.length(),
+            transform.matrix3.z_axis.length(),
+        );
+        if (scale.max_element() - scale.min_element()) > 1e-4 * scale.max_element() {
+            return Err(Error::input(
+                path,
+                Some(format!("sphere '{name}'")),
+                "a sphere's transform must scale uniformly",
+            ));
+        }
+        let geom = SphereGeom {
+            center: transform.translation,
+            radius: sphere.radius * scale.x,
+        };
+        // The bounds too must be finite: the BVH builder cannot order infinite boxes.
+        let reach = geom.center.abs().max_element() + geom.radius;
+        if !(geom.radius > 0.0 && reach.is_finite()) {
+            return Err(Error::input(
+                path,
+                Some(format!("sphere '{name}'")),
+                "radius must be positive and the sphere's bounds finite",
+            ));
+        }
+        let material = materials.index(material, None);
+        let emitter = validate_emitter(emitter, path, name)?;
+        groups.push(Group {
+            first: columns.shapes.len(),
+            material,
+            emitter,
+            emission_texture: None,
+        });
+        columns.push_plain(Shape::Sphere(geom), attributes);
+    }
+    Ok(())
+}
