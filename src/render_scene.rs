@@ -385,7 +385,7 @@ mod tests {
         let u = |d: u32| uniform(path_key(set, i, 0), 0, d);
         let origin = Vec3A::new(u(0), u(1), u(2)) * 12.0 - 1.0;
         let direction = (Vec3A::new(u(3), u(4), u(5)) - 0.5).normalize();
-        let t_max = if i % 2 == 0 {
+        let t_max = if i.is_multiple_of(2) {
             f32::INFINITY
         } else {
             6.0 * u(6)
