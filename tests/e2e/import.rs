@@ -1,4 +1,4 @@
-//! Importing glTF and OBJ: the Blender exports of `../shared/assets/blender` give the objects,
+//! Importing glTF and OBJ: the Blender exports of `assets/blender` give the objects,
 //! world-space bounding boxes, materials and camera their README documents; hand-made glTF
 //! files (written here) cover the edge cases; bad files give errors that name the file and the
 //! problem; the bare-model rule and `[[model]]` place models in the room; punctual lights give
@@ -21,8 +21,7 @@ use wavetrace::scene::{Camera, Emitter, Material, MaterialTextures, Mesh, Name, 
 use wavetrace::{FlatScene, RenderSettings, Scene, flatten, load_scene, render};
 
 fn blender_dir() -> PathBuf {
-    // CI checks the repository out with `shared/` beside it, as on the development machine.
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/assets/blender")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/blender")
 }
 
 fn repo(path: &str) -> PathBuf {
