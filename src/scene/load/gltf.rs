@@ -102,6 +102,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     // gltf-json 1.4.1's validation reads a primitive's POSITION accessor before checking that
     // it exists, and panics when it does not (found by fuzzing): `gltf_fix` drops such
     // primitives before validation.
+    // Checked above: gltf-json's validation refuses required extensions it does not know
+    // itself, even those with a fallback.
+    let mut json = json;
+    json.extensions_required.clear();
     let gltf = gltf::Gltf {
         document: gltf::Document::from_json(json).map_err(gltf_error)?,
         blob,
@@ -272,6 +276,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             let why = first_skip
                 .or_else(|| warnings.iter().find(|w| w.contains("skipped")).cloned())
                 .unwrap_or_else(|| "only points and lines".to_string());
+            let prefix = format!("{}:", path.display());
+            let why = why.strip_prefix(&prefix).unwrap_or(&why).trim_start();
             return Err(Error::input(
                 path,
                 None,
