@@ -17,6 +17,7 @@ mod determinism;
 mod furnace;
 mod fuzz_regressions;
 mod import;
+mod import_robust;
 mod interrupt;
 mod large_obj;
 mod materials;

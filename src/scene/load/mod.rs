@@ -8,6 +8,7 @@
 
 mod gltf;
 mod gltf_check;
+mod gltf_fix;
 mod obj;
 mod obj_check;
 mod place;
