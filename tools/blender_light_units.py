@@ -8,7 +8,8 @@ no adaptive sampling, no denoising, background black); Blender's own glTF export
 in each of its lighting modes (SPEC = "Standard", the default; COMPAT = "Unitless"; RAW);
 wavetrace renders each export with each `--light-units`. The script prints the mean radiance
 over a central square and over the whole image for every pair, the ratios wavetrace/Cycles,
-and the closed form of the central radiance (albedo / pi * E).
+and the closed forms of both means (albedo / pi * E at every pixel centre). The
+results go to OUT/results.txt (Blender's own log goes to stdout).
 
     python3.11 -m venv /tmp/bpy && /tmp/bpy/bin/pip install 'bpy==4.5.*'
     cargo build --release
@@ -48,8 +49,12 @@ def reset():
     return scene
 
 
-def build(kind, blend=0.15):
+def build(kind, size, blend=0.15):
     scene = reset()
+    # Before the export too: the exported camera's yfov follows the render's aspect ratio.
+    scene.render.resolution_x = size
+    scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
     bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0, 0, 0))
     plane = bpy.context.active_object
     mat = bpy.data.materials.new("white")
@@ -96,6 +101,7 @@ def render_cycles(scene, path, size, samples):
     scene.cycles.use_denoising = False
     scene.cycles.max_bounces = 4
     scene.cycles.seed = 1
+    scene.cycles.light_sampling_threshold = 0.0  # no culling of dim light contributions
     scene.render.resolution_x = size
     scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
@@ -137,6 +143,38 @@ def exr_means(path, size):
     return sum(central) / len(central), sum(reds) / len(reds)
 
 
+def closed_form_means(kind, size, blend):
+    """(central-square mean, whole-image mean) of albedo / pi * E over the pixel centres, E
+    from the light's closed form (Blender's spot: smoothstep over Cycles' blend range)."""
+    half = math.tan(math.radians(35.0))
+    total, central, n_central = 0.0, 0.0, 0
+    c0, c1 = int(size * 0.45), int(size * 0.55)
+    for j in range(size):
+        for i in range(size):
+            u = ((i + 0.5) / size * 2 - 1) * half
+            v = ((j + 0.5) / size * 2 - 1) * half
+            x, y = 6.0 * u, 6.0 * v  # where the ray meets the plane z = 0
+            if kind == "sun":
+                e = SUN_STRENGTH
+            else:
+                r2 = x * x + y * y + HEIGHT**2
+                cos = HEIGHT / math.sqrt(r2)
+                e = POINT_WATTS / (4 * math.pi) * cos / r2
+                if kind == "spot":
+                    cos_half = math.cos(math.radians(SPOT_SIZE_DEG / 2))
+                    if blend == 0:
+                        e *= 1.0 if cos > cos_half else 0.0
+                    else:
+                        t = min(max((cos - cos_half) / ((1 - cos_half) * blend), 0.0), 1.0)
+                        e *= t * t * (3 - 2 * t)
+            radiance = ALBEDO / math.pi * e
+            total += radiance
+            if c0 <= i < c1 and c0 <= j < c1:
+                central += radiance
+                n_central += 1
+    return central / n_central, total / size**2
+
+
 def render_wavetrace(exe, glb, units, out, size, samples):
     subprocess.run(
         [exe, "render", glb, "-o", out, "--light-units", units, "--width", str(size),
@@ -152,6 +190,7 @@ def main():
     ap.add_argument("--out", default=None)
     ap.add_argument("--samples", type=int, default=64)
     ap.add_argument("--size", type=int, default=64)
+    ap.add_argument("--only", default=None, help="point, sun or spot")
     args = ap.parse_args(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else None)
     out = args.out or tempfile.mkdtemp(prefix="light-units-")
     os.makedirs(out, exist_ok=True)
@@ -159,21 +198,26 @@ def main():
     cases = [("point", None), ("sun", None), ("spot", 0.15), ("spot", 0.0), ("spot", 0.5),
              ("spot", 1.0)]
     readings = {"SPEC": "spec", "COMPAT": "unitless", "RAW": "raw"}
-    print(f"results in {out}")
+    results = open(os.path.join(out, "results.txt"), "w")
+
+    def say(line):
+        results.write(line + "\n")
+        results.flush()
+
+    say(f"results in {out}; {args.size}x{args.size}, {args.samples} samples")
     for kind, blend in cases:
+        if args.only and kind != args.only:
+            continue
         tag = kind if blend is None else f"spot-blend{blend}"
-        scene = build(kind, blend if blend is not None else 0.15)
+        scene = build(kind, args.size, blend if blend is not None else 0.15)
         cycles = os.path.join(out, f"{tag}-cycles.exr")
         render_cycles(scene, cycles, args.size, args.samples)
         cc, cw = exr_means(cycles, args.size)
-        if kind == "sun":
-            expected = ALBEDO / math.pi * SUN_STRENGTH
-        else:
-            expected = ALBEDO / math.pi * POINT_WATTS / (4 * math.pi) / HEIGHT**2
-        print(f"\n{tag}: Cycles centre {cc:.6g} (closed form {expected:.6g}, "
-              f"ratio {cc / expected:.4f}), whole image {cw:.6g}")
+        ec, ew = closed_form_means(kind, args.size, blend)
+        say(f"\n{tag}: Cycles centre {cc:.6g} (closed form {ec:.6g}, x{cc / ec:.4f}), "
+            f"whole image {cw:.6g} (closed form {ew:.6g}, x{cw / ew:.4f})")
         for mode, reading in readings.items():
-            scene = build(kind, blend if blend is not None else 0.15)
+            scene = build(kind, args.size, blend if blend is not None else 0.15)
             glb = os.path.join(out, f"{tag}-{mode}.glb")
             export(glb, mode)
             lights = glb_lights(glb)
@@ -189,12 +233,12 @@ def main():
                 try:
                     render_wavetrace(exe, glb, units, wt, args.size, args.samples)
                 except subprocess.CalledProcessError as e:
-                    print(f"  {mode:6} export ({written}) --light-units {units:8}: wavetrace "
-                          f"failed: {e.stderr.decode().strip().splitlines()[-1]}")
+                    say(f"  {mode:6} export ({written}) --light-units {units:8}: wavetrace "
+                        f"failed: {e.stderr.decode().strip().splitlines()[-1]}")
                     continue
                 wc, ww = exr_means(wt, args.size)
-                print(f"  {mode:6} export ({written}) --light-units {units:8}: centre "
-                      f"{wc:.6g} (x{wc / cc:.4f} Cycles), whole {ww:.6g} (x{ww / cw:.4f})")
+                say(f"  {mode:6} export ({written}) --light-units {units:8}: centre "
+                    f"{wc:.6g} (x{wc / cc:.4f} Cycles), whole {ww:.6g} (x{ww / cw:.4f})")
 
 
 if __name__ == "__main__":
