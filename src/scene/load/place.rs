@@ -297,7 +297,11 @@ pub(super) fn stage_model(
 /// ([`room_stage_transform`]), seen by the room's camera. The model's cameras are dropped.
 pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
     if bounding_box(&model.world).is_none() {
-        return Err(Error::input(path, None, "the file has no geometry to place"));
+        return Err(Error::input(
+            path,
+            None,
+            "the file has no geometry to place",
+        ));
     }
     let mut room = scene_file::load(Path::new("builtin:room"), BUILTIN_ROOM)?;
     stage_model(&mut room.world, model.world, None, path)?;
@@ -505,7 +509,10 @@ mod tests {
             assert!(hi.z <= ROOM_STAGE_TOP + 1e-4, "{size}");
             for p in &placed {
                 let d = p.x - ROOM_EYE.x;
-                assert!(p.y.abs().max(p.z.abs()) <= ROOM_VIEW_FILL * d * (1.0 + 1e-5), "{p}");
+                assert!(
+                    p.y.abs().max(p.z.abs()) <= ROOM_VIEW_FILL * d * (1.0 + 1e-5),
+                    "{p}"
+                );
                 assert!(p.x <= 13.0 - 0.5 * p.y.abs() && p.y.abs() < 6.0, "{p}");
             }
             // The front (-y in the model) faces the camera (-x), unless the model was turned.
@@ -513,7 +520,10 @@ mod tests {
             if size.y > FLAT_TURN_RATIO * size.x {
                 assert!((front - -Vec3::Y).length() < 1e-5, "{size}: {front}");
                 let width = (hi - lo).y;
-                assert!(width > 4.0 * (hi - lo).x, "{size}: the long side faces the camera");
+                assert!(
+                    width > 4.0 * (hi - lo).x,
+                    "{size}: the long side faces the camera"
+                );
             } else {
                 assert!((front - -Vec3::X).length() < 1e-5, "{size}: {front}");
             }
