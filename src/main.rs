@@ -260,12 +260,27 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             (None, Some(_)) => u32::MAX, // the time budget decides
             (None, None) => scene.defaults.spp.unwrap_or(defaults.spp),
         };
-        let (width, height) = image_size(
-            args.width.or(scene.defaults.width),
-            args.height.or(scene.defaults.height),
-            flat.camera.aspect_ratio,
-            (defaults.width, defaults.height),
-        );
+        // A side given alone on the command line keeps the camera's aspect ratio, else the
+        // scene's image's, else a square: never the other side of the scene's size.
+        let scene_aspect = match (scene.defaults.width, scene.defaults.height) {
+            (Some(w), Some(h)) => Some(w as f32 / h as f32),
+            _ => None,
+        };
+        let (width, height) = if args.width.is_some() || args.height.is_some() {
+            image_size(
+                args.width,
+                args.height,
+                flat.camera.aspect_ratio.or(scene_aspect),
+                (defaults.width, defaults.height),
+            )
+        } else {
+            image_size(
+                scene.defaults.width,
+                scene.defaults.height,
+                flat.camera.aspect_ratio,
+                (defaults.width, defaults.height),
+            )
+        };
         let settings = RenderSettings {
             width,
             height,
