@@ -184,11 +184,20 @@ fn width_alone_without_a_camera_aspect_gives_a_square_image_and_up_is_checked() 
     let glow = write_gltf(&dir, "glow.gltf", &glowing_model(false));
     let out = dir.join("room.png");
     let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
-        .args(["render", glow.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .args([
+            "render",
+            glow.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
         .args(["--width", "20", "--spp", "1", "--quiet"])
         .output()
         .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let img = image::open(&out).unwrap();
     assert_eq!((img.width(), img.height()), (20, 20));
     // --up on a scene file is refused, saying where it belongs.
