@@ -126,7 +126,9 @@ pub(super) fn fit_transform(lo: Vec3, hi: Vec3, size: f32, anchor: Vec3) -> Affi
 pub fn room_stage_transform(world: &hecs::World) -> Option<Affine3A> {
     let points = world_points(world);
     let (lo, hi) = box_of(&points)?;
-    let front_to_camera = Affine3A::from_rotation_z(-std::f32::consts::FRAC_PI_2);
+    // A quarter turn about z, -Y to -X, exact (no rounding, which would give a degenerate
+    // triangle an area).
+    let front_to_camera = Affine3A::from_mat3(glam::Mat3::from_cols(Vec3::NEG_Y, Vec3::X, Vec3::Z));
     let (depth, width) = ((hi - lo).y, (hi - lo).x);
     let turn = if depth > FLAT_TURN_RATIO * width {
         Affine3A::IDENTITY
