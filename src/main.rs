@@ -12,7 +12,10 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use wavetrace::scene::load::{LoadOptions, load_scene_with};
+use wavetrace::scene::load::{
+    LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning, is_model_file,
+    load_scene_placed,
+};
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
 use wavetrace::{Flow, RenderSettings, RenderStats, flatten, render, write_image};
 
@@ -50,12 +53,20 @@ struct BenchSeedArgs {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// Scene file (.toml) or model file (.gltf, .glb, .obj). A model with no emitter and no
-    /// light is placed in the seed room and seen from the room's camera.
+    /// Scene file (.toml) or model file (.gltf, .glb, .obj). A model that does not light
+    /// itself (no punctual light, and no emitter with a camera of its own) is placed in the
+    /// seed room, facing and filling the room's camera.
     scene: PathBuf,
     /// Place a model file in the seed room even if it has its own lights.
     #[arg(long)]
     in_room: bool,
+    /// The model file's up axis: y (glTF, Blender's OBJ export; default) or z.
+    #[arg(long, value_parser = ["y", "z"])]
+    up: Option<String>,
+    /// How a glTF file's light intensities are read: spec (candela and lux, 683 lm/W, as
+    /// Blender exports by default), unitless (read as W/sr and W/m^2), raw (Blender's watts).
+    #[arg(long, value_parser = ["spec", "unitless", "raw"])]
+    light_units: Option<String>,
     /// Render from the camera of this name (default: the file's first camera).
     #[arg(long)]
     camera: Option<String>,
@@ -64,11 +75,11 @@ struct RenderArgs {
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Image width in pixels (default: the scene's, else 800, or from the height and the
-    /// camera's aspect ratio).
+    /// camera's aspect ratio, square without one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     width: Option<u32>,
     /// Image height in pixels (default: the scene's, else 800, or from the width and the
-    /// camera's aspect ratio).
+    /// camera's aspect ratio, square without one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
     /// Samples per pixel (default: the scene's, else 16; with --time: no limit but the time).
@@ -210,11 +221,27 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         .build()
         .context("cannot start worker threads")?;
     pool.install(|| {
+        if (args.up.is_some() || args.light_units.is_some()) && !is_model_file(&args.scene) {
+            anyhow::bail!(
+                "{}: --up and --light-units apply to model files; a scene file states them \
+                 per [[model]] (up = \"z\", light_units = \"unitless\")",
+                args.scene.display()
+            );
+        }
         let options = LoadOptions {
             in_room: args.in_room,
             camera: args.camera.clone(),
+            up: match args.up.as_deref() {
+                Some("z") => UpAxis::Z,
+                _ => UpAxis::Y,
+            },
+            light_units: match args.light_units.as_deref() {
+                Some("unitless") => LightUnits::Unitless,
+                Some("raw") => LightUnits::Raw,
+                _ => LightUnits::Spec,
+            },
         };
-        let scene = load_scene_with(&args.scene, &options)?;
+        let (scene, placement) = load_scene_placed(&args.scene, &options)?;
         // Refuse an unwritable output before spending time on the render.
         wavetrace::output::check_writable(&output)?;
         let flat = flatten(&scene.world, &args.scene)?;
@@ -233,12 +260,27 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             (None, Some(_)) => u32::MAX, // the time budget decides
             (None, None) => scene.defaults.spp.unwrap_or(defaults.spp),
         };
-        let (width, height) = image_size(
-            args.width.or(scene.defaults.width),
-            args.height.or(scene.defaults.height),
-            flat.camera.aspect_ratio,
-            (defaults.width, defaults.height),
-        );
+        // A side given alone on the command line keeps the camera's aspect ratio, else the
+        // scene's image's, else a square: never the other side of the scene's size.
+        let scene_aspect = match (scene.defaults.width, scene.defaults.height) {
+            (Some(w), Some(h)) => Some(w as f32 / h as f32),
+            _ => None,
+        };
+        let (width, height) = if args.width.is_some() || args.height.is_some() {
+            image_size(
+                args.width,
+                args.height,
+                flat.camera.aspect_ratio.or(scene_aspect),
+                (defaults.width, defaults.height),
+            )
+        } else {
+            image_size(
+                scene.defaults.width,
+                scene.defaults.height,
+                flat.camera.aspect_ratio,
+                (defaults.width, defaults.height),
+            )
+        };
         let settings = RenderSettings {
             width,
             height,
@@ -300,6 +342,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         bar.finish_and_clear();
 
         write_image(&output, &film, args.exposure)?;
+        if placement == Placement::AsIs
+            && let Some(warning) = dark_image_warning(&film.resolve(), args.exposure)
+        {
+            eprintln!("warning: {warning}");
+        }
         eprintln!(
             "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
             settings.width,
@@ -395,7 +442,8 @@ fn run_bench_seed(args: BenchSeedArgs) -> Result<()> {
 }
 
 /// The image size: what is given; a missing side follows the camera's aspect ratio (width /
-/// height) when it has one; with neither side given the larger side is the default's.
+/// height) when it has one, else the image is square; with neither side given the larger
+/// side is the default's.
 fn image_size(
     width: Option<u32>,
     height: Option<u32>,
@@ -410,7 +458,9 @@ fn image_size(
         (None, Some(h), Some(a)) => (side(h as f32 * a), h),
         (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
         (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
-        (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
+        (Some(w), None, None) => (w, w),
+        (None, Some(h), None) => (h, h),
+        (None, None, None) => default,
     }
 }
 

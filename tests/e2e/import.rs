@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 use wavetrace::flatten::Shape;
 use wavetrace::math::{Rgb, Vec3};
 use wavetrace::scene::load::{
-    LoadOptions, ROOM_FREE_FLOOR_CENTRE, UpAxis, bounding_box, has_lights, import_model,
-    load_scene_with,
+    LightUnits, LoadOptions, ROOM_EYE, ROOM_FLOOR, ROOM_VIEW_FILL, UpAxis, bounding_box,
+    has_lights, import_model, load_scene_with,
 };
 use wavetrace::scene::{Camera, Emitter, Material, MaterialTextures, Mesh, Name, Transform};
 use wavetrace::{FlatScene, RenderSettings, Scene, flatten, load_scene, render};
@@ -29,7 +29,7 @@ fn repo(path: &str) -> PathBuf {
 }
 
 /// A fresh directory for files a test writes.
-fn scratch(test: &str) -> PathBuf {
+pub(crate) fn scratch(test: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("wavetrace-import-{}-{test}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
@@ -364,7 +364,7 @@ fn base64(bytes: &[u8]) -> String {
 
 /// Builds one binary buffer and the accessors into it.
 #[derive(Default)]
-struct Buffer {
+pub(crate) struct Buffer {
     bytes: Vec<u8>,
     views: Vec<Value>,
     accessors: Vec<Value>,
@@ -381,7 +381,7 @@ impl Buffer {
         self.views.len() - 1
     }
 
-    fn vec3s(&mut self, v: &[[f32; 3]]) -> usize {
+    pub(crate) fn vec3s(&mut self, v: &[[f32; 3]]) -> usize {
         let data: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         let view = self.view(&data);
         let lo: Vec<f32> = (0..3)
@@ -406,7 +406,7 @@ impl Buffer {
         self.accessors.len() - 1
     }
 
-    fn indices(&mut self, i: &[u16]) -> usize {
+    pub(crate) fn indices(&mut self, i: &[u16]) -> usize {
         let data: Vec<u8> = i.iter().flat_map(|x| x.to_le_bytes()).collect();
         let view = self.view(&data);
         self.accessors.push(
@@ -416,7 +416,7 @@ impl Buffer {
     }
 
     /// Puts the buffer, views and accessors into `doc` (buffer as a data URI).
-    fn into_doc(self, mut doc: Value) -> Value {
+    pub(crate) fn into_doc(self, mut doc: Value) -> Value {
         doc["asset"] = json!({"version": "2.0"});
         doc["buffers"] = json!([{
             "byteLength": self.bytes.len(),
@@ -428,7 +428,7 @@ impl Buffer {
     }
 }
 
-fn write_gltf(dir: &Path, name: &str, doc: &Value) -> PathBuf {
+pub(crate) fn write_gltf(dir: &Path, name: &str, doc: &Value) -> PathBuf {
     let path = dir.join(name);
     std::fs::write(&path, serde_json::to_string_pretty(doc).unwrap()).unwrap();
     path
@@ -638,7 +638,7 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
 
 /// A ground quad (albedo 0.5, glTF y = 0, 100 units wide) seen straight down by a camera of
 /// tiny field of view at glTF height 2, lit by one punctual light from straight above.
-fn punctual_light_doc(light: Value, light_height: f32) -> Value {
+pub(crate) fn punctual_light_doc(light: Value, light_height: f32) -> Value {
     let mut b = Buffer::default();
     let positions = b.vec3s(&[
         [-50.0, 0.0, 50.0],
@@ -670,7 +670,7 @@ fn punctual_light_doc(light: Value, light_height: f32) -> Value {
     }))
 }
 
-fn render_mean(flat: &FlatScene) -> Rgb {
+pub(crate) fn render_mean(flat: &FlatScene) -> Rgb {
     let settings = RenderSettings {
         width: 4,
         height: 4,
@@ -707,7 +707,13 @@ fn punctual_lights_give_their_analytic_radiance() {
             &format!("{name}.gltf"),
             &punctual_light_doc(light.clone(), 2.0),
         );
-        let scene = load_scene(&path).expect("loads");
+        // Unitless: the file's numbers are W/sr and W/m^2 (the spec reading, / 683, is
+        // tested in `light_units`).
+        let unitless = LoadOptions {
+            light_units: LightUnits::Unitless,
+            ..Default::default()
+        };
+        let scene = load_scene_with(&path, &unitless).expect("loads");
         assert!(has_lights(&scene.world), "{name}");
         let flat = flatten(&scene.world, &path).unwrap();
         assert_eq!(flat.lights.delta_lights.len(), 1);
@@ -988,16 +994,12 @@ fn a_bare_model_stands_in_the_room_and_a_lit_file_keeps_its_camera() {
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), n| {
             (lo.min(o[*n].lo), hi.max(o[*n].hi))
         });
-    assert!(
-        ((hi - lo).max_element() - 3.0).abs() < 1e-4,
-        "fits a 3-unit box: {lo}..{hi}"
-    );
-    assert!((lo.z - -5.0).abs() < 1e-4, "stands on the floor");
-    let centre = (lo + hi) * 0.5;
-    assert!(
-        (centre.x - ROOM_FREE_FLOOR_CENTRE.x).abs() < 1e-4
-            && (centre.y - ROOM_FREE_FLOOR_CENTRE.y).abs() < 1e-4
-    );
+    assert!((lo.z - ROOM_FLOOR).abs() < 1e-4, "stands on the floor");
+    // In full view of the room camera (looking along +x, 90 degrees), and large: as near as
+    // the view allows, so the box reaches the view's margin.
+    let d = lo.x - ROOM_EYE.x;
+    assert!(hi.y.abs().max(lo.y.abs()).max(hi.z.abs()) <= ROOM_VIEW_FILL * d + 1e-4);
+    assert!((-lo.z).max(hi.y.abs()).max(lo.y.abs()) >= ROOM_VIEW_FILL * d * 0.999);
 
     // The glTF export has an emitter: it renders as is, from its own camera.
     let glb = blender_dir().join("primitives.glb");
@@ -1007,21 +1009,21 @@ fn a_bare_model_stands_in_the_room_and_a_lit_file_keeps_its_camera() {
     // ... unless --in-room.
     let options = LoadOptions {
         in_room: true,
-        camera: None,
+        ..Default::default()
     };
     let scene = load_scene_with(&glb, &options).unwrap();
     assert!(objects(&scene).contains_key("floor"));
     assert_eq!(cameras(&scene).len(), 1);
     // A camera that does not exist is named in the error, with the ones that do.
     let options = LoadOptions {
-        in_room: false,
         camera: Some("Nope".into()),
+        ..Default::default()
     };
     let e = load_scene_with(&glb, &options).err().unwrap().to_string();
     assert!(e.contains("Nope") && e.contains("Camera"), "{e}");
     let options = LoadOptions {
-        in_room: false,
         camera: Some("Camera".into()),
+        ..Default::default()
     };
     assert_eq!(cameras(&load_scene_with(&glb, &options).unwrap()).len(), 1);
 }
