@@ -373,9 +373,12 @@ fn pixel_location(index: usize, width: usize) -> String {
     format!("pixel ({}, {})", index % width, index / width)
 }
 
+/// A kind of bad texel: its description and its test.
+type TexelProblem = (&'static str, fn(&Rgb) -> bool);
+
 /// NaN, infinite or negative texels are refused: the first one is named, with the count.
 fn check_texels(texels: &[Rgb], width: usize, origin: &Path) -> Result<()> {
-    let problems: [(&str, fn(&Rgb) -> bool); 2] = [
+    let problems: [TexelProblem; 2] = [
         ("NaN or infinite values", |t| !t.is_finite()),
         ("negative values", |t| t.min_element() < 0.0),
     ];
@@ -616,6 +619,7 @@ mod tests {
                 dof += 1;
             }
             let p_value = chi_square_survival(statistic, (dof - 1) as f64);
+            eprintln!("rotation {rotation}: chi2 {statistic:.1}, dof {dof}, p {p_value:.3}");
             assert!(
                 p_value > 0.01,
                 "rotation {rotation}: chi2 {statistic:.1}, dof {dof}, p {p_value:e}"
@@ -716,6 +720,10 @@ mod tests {
                 exact[k]
             );
             assert!((a - b).abs() < 5.0 * (ea * ea + eb * eb).sqrt());
+            eprintln!(
+                "channel {k}: exact {:.4}, uniform {a:.4} +- {ea:.4}, importance {b:.4} +- {eb:.4}",
+                exact[k]
+            );
             // Importance sampling is the better estimator on a sunny map.
             assert!(eb < ea / 3.0, "channel {k}: {eb} vs {ea}");
         }
@@ -786,6 +794,50 @@ mod tests {
         let azimuth = |d: Vec3A| d.y.atan2(d.x).to_degrees();
         let turn = (azimuth(b) - azimuth(a) + 540.0).rem_euclid(360.0) - 180.0;
         assert!((turn + 90.0).abs() < 0.5, "{turn}");
+    }
+
+    #[test]
+    fn shipped_sky_has_its_sun_where_the_generator_put_it() {
+        // `assets/sky.hdr` from `examples/make_sky.rs`: level ground receives 2.5 from the
+        // sun and 0.5 from the sky (luminance; RGBE keeps about 1%), and the brightest texel
+        // lies at elevation 40 and azimuth 35 degrees, read through Cycles' mapping.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/sky.hdr");
+        let env = Environment::from_file(&path, 1.0, 0.0).unwrap();
+        let Source::Map(map) = &env.source else {
+            panic!("a map")
+        };
+        let (width, height) = (map.width, map.height);
+        let mut irradiance = [0.0f64; 2]; // sun (texels above 100), sky
+        for i in 0..height / 2 {
+            let theta = |edge: usize| edge as f64 / height as f64 * PI64;
+            let weight = (2.0 * PI64 / width as f64)
+                * (theta(i + 1).sin().powi(2) - theta(i).sin().powi(2))
+                / 2.0;
+            for j in 0..width {
+                let l = luminance(map.texels[i * width + j]) as f64;
+                irradiance[(l < 100.0) as usize] += l * weight;
+            }
+        }
+        eprintln!(
+            "sky.hdr: level-ground irradiance sun {:.4}, sky {:.4}",
+            irradiance[0], irradiance[1]
+        );
+        assert!((irradiance[0] - 2.5).abs() < 0.025 && (irradiance[1] - 0.5).abs() < 0.005);
+        let brightest = (0..width * height)
+            .max_by(|&a, &b| luminance(map.texels[a]).total_cmp(&luminance(map.texels[b])))
+            .unwrap();
+        let (i, j) = (brightest / width, brightest % width);
+        let d = direction(
+            PI64 * (i as f64 + 0.5) / height as f64,
+            PI64 - 2.0 * PI64 * (j as f64 + 0.5) / width as f64,
+        );
+        let elevation = d.z.asin().to_degrees();
+        let azimuth = d.y.atan2(d.x).to_degrees();
+        // Within one texel (0.7 degrees).
+        assert!(
+            (elevation - 40.0).abs() < 0.71 && (azimuth - 35.0).abs() < 0.71,
+            "{elevation} {azimuth}"
+        );
     }
 
     fn error_text(result: Result<Environment>) -> String {
