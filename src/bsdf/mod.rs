@@ -11,7 +11,7 @@
 //!   incident side.
 
 #[cfg(test)]
-mod chi_square;
+pub(crate) mod chi_square;
 pub mod dielectric;
 pub mod lambert;
 pub mod metallic_roughness;
