@@ -7,7 +7,7 @@ use crate::flatten::lights::{LIGHT_LANES, LightSamples, LightUniforms};
 use crate::flatten::spheres::SphereGeom;
 use crate::flatten::{FlatScene, NO_EMITTER, Shape};
 use crate::math::frame::Frame;
-use crate::math::rng::{self, dim};
+use crate::math::rng::{Sampler, dim};
 use crate::math::sampling::Rank1Lattice;
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, max_component, offset_ray_origin, transpose4};
 use crate::settings::MAX_SHADOW_RAYS;
@@ -35,6 +35,8 @@ pub struct ShadeParams {
     pub roulette_min_bounces: u32,
     /// Paths are cut (and counted) when they reach this depth.
     pub max_depth: u32,
+    /// Where the random numbers come from.
+    pub sampler: Sampler,
 }
 
 /// Shades every hit of the batch. Writes each path's next ray into `next_rays` (same index)
@@ -239,7 +241,7 @@ fn shade_one(
             lattice.len()
         };
         // The lattice's shift for this path: one hash for all its shadow rays.
-        let shift = rng::uniform3(key, bounce, dim::LIGHT_SAMPLES);
+        let shift = params.sampler.uniform3(key, bounce, dim::LIGHT_SAMPLES);
         // The shading frame and the side the shadow rays leave from, one vector per
         // coordinate, for the lanes.
         let [s, t, n, side] =
@@ -307,11 +309,11 @@ fn shade_one(
     }
 
     // --- BSDF sampling for the next ray.
-    let u_lobe = rng::uniform(key, bounce, dim::BSDF_LOBE);
+    let u_lobe = params.sampler.uniform(key, bounce, dim::BSDF_LOBE);
     let Some(sample) = bsdf.sample(
         wo_local,
         u_lobe,
-        rng::uniform2(key, bounce, dim::BSDF_DIRECTION),
+        params.sampler.uniform2(key, bounce, dim::BSDF_DIRECTION),
     ) else {
         return false;
     };
@@ -335,7 +337,7 @@ fn shade_one(
     // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
     if bounce >= params.roulette_min_bounces {
         let survival = max_component(*path.throughput).min(MAX_SURVIVAL);
-        if rng::uniform(key, bounce, dim::ROULETTE) >= survival {
+        if params.sampler.uniform(key, bounce, dim::ROULETTE) >= survival {
             return false;
         }
         *path.throughput /= survival;
