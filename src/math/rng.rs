@@ -31,7 +31,7 @@ pub mod dim {
 
 /// SplitMix64's finaliser: a bijective 64-bit mixer with full avalanche.
 #[inline]
-fn mix64(mut z: u64) -> u64 {
+pub(super) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -109,17 +109,19 @@ const PATTERNS_PER_BOUNCE: u32 = 8;
 impl Sampler {
     /// The key of one path sample. Independent: a hash of (seed, pixel, sample index). Sobol:
     /// the pixel's scramble seed (distinct for every pixel) in the high half, the sample index
-    /// in the low half.
+    /// with its bits reversed (the form the sampler works on) in the low half.
     #[inline]
     pub fn path_key(self, seed: u64, pixel: u32, sample_index: u32) -> u64 {
         match self {
             Sampler::Independent => path_key(seed, pixel, sample_index),
-            Sampler::Sobol => (sobol::pixel_seed(seed, pixel) as u64) << 32 | sample_index as u64,
+            Sampler::Sobol => {
+                (sobol::pixel_seed(seed, pixel) as u64) << 32 | sample_index.reverse_bits() as u64
+            }
         }
     }
 
-    /// The Sobol pattern of `dimension` of `bounce` and the path's (pixel seed, sample
-    /// index), or `None` past the bounces it covers.
+    /// The Sobol pattern of `dimension` of `bounce` and the path's (pixel seed, reversed
+    /// sample index), or `None` past the bounces it covers.
     #[inline(always)]
     fn sobol_pattern(self, key: u64, bounce: u32, dimension: u32) -> Option<(u32, u32, u32)> {
         (self == Sampler::Sobol && bounce < SOBOL_BOUNCES).then(|| {
@@ -142,7 +144,9 @@ impl Sampler {
     #[inline]
     pub fn uniform(self, key: u64, bounce: u32, dimension: u32) -> f32 {
         match self.sobol_pattern(key, bounce, dimension) {
-            Some((pixel, index, pattern)) => sobol::sample_1d(pixel, index, pattern),
+            Some((pixel, index, pattern)) => {
+                sobol::sample_1d_of_reversed_index(pixel, index, pattern)
+            }
             None => uniform(self.independent_key(key), bounce, dimension),
         }
     }
@@ -153,7 +157,7 @@ impl Sampler {
     pub fn uniform2(self, key: u64, bounce: u32, dimension: u32) -> Vec2 {
         match self.sobol_pattern(key, bounce, dimension) {
             Some((pixel, index, pattern)) => {
-                Vec2::from_array(sobol::sample_2d(pixel, index, pattern))
+                Vec2::from_array(sobol::sample_2d_of_reversed_index(pixel, index, pattern))
             }
             None => uniform2(self.independent_key(key), bounce, dimension),
         }
@@ -165,8 +169,12 @@ impl Sampler {
     pub fn uniform3(self, key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
         match self.sobol_pattern(key, bounce, dimension) {
             Some((pixel, index, pattern)) => (
-                sobol::sample_1d(pixel, index, pattern),
-                Vec2::from_array(sobol::sample_2d(pixel, index, pattern + 1)),
+                sobol::sample_1d_of_reversed_index(pixel, index, pattern),
+                Vec2::from_array(sobol::sample_2d_of_reversed_index(
+                    pixel,
+                    index,
+                    pattern + 1,
+                )),
             ),
             None => uniform3(self.independent_key(key), bounce, dimension),
         }

@@ -30,7 +30,33 @@ const SECOND_DIMENSION: [u32; 32] = {
     v
 };
 
-/// Point `index` of the Sobol sequence's first two dimensions, as 32-bit fractions.
+/// The second dimension's generator matrix times the index, one table per byte of the
+/// index (the product over GF(2) is the XOR of the four bytes' products), each entry with
+/// its bits reversed: the form the scramble below works on. 4 KiB, built at compile time.
+const SECOND_DIMENSION_REVERSED_BY_BYTE: [[u32; 256]; 4] = {
+    let mut tables = [[0u32; 256]; 4];
+    let mut byte = 0;
+    while byte < 4 {
+        let mut value = 0;
+        while value < 256 {
+            let mut y = 0u32;
+            let mut bit = 0;
+            while bit < 8 {
+                if value >> bit & 1 == 1 {
+                    y ^= SECOND_DIMENSION[byte * 8 + bit];
+                }
+                bit += 1;
+            }
+            tables[byte][value] = y.reverse_bits();
+            value += 1;
+        }
+        byte += 1;
+    }
+    tables
+};
+
+/// Point `index` of the Sobol sequence's first two dimensions, as 32-bit fractions (the
+/// definition; the samplers below compute the same products from tables).
 #[inline]
 pub fn sobol_2d(index: u32) -> [u32; 2] {
     let mut y = 0;
@@ -44,21 +70,36 @@ pub fn sobol_2d(index: u32) -> [u32; 2] {
     [index.reverse_bits(), y]
 }
 
-/// A hash-based nested uniform scramble of the 32-bit fraction `x`: each bit is flipped or
-/// not depending on the seed and on the bits above it only (the more significant digits), as
-/// Owen scrambling does; so intervals of `2^-k` are permuted among themselves at every
-/// level. Laine and Karras's construction (after reversing the bits, every step spreads
-/// information only toward the more significant end), with Burley's constants.
-#[inline]
-pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
-    let mut v = x.reverse_bits();
+/// The second Sobol dimension of `index` with its bits reversed, from the byte tables.
+#[inline(always)]
+fn second_dimension_reversed(index: u32) -> u32 {
+    let [b0, b1, b2, b3] = index.to_le_bytes();
+    let t = &SECOND_DIMENSION_REVERSED_BY_BYTE;
+    t[0][b0 as usize] ^ t[1][b1 as usize] ^ t[2][b2 as usize] ^ t[3][b3 as usize]
+}
+
+/// Laine and Karras's permutation with Burley's constants: every step (adding, multiplying,
+/// xor with an even multiple) carries information only from lower to higher bits, so bit
+/// `k` of the result depends on the seed and bits `0..=k` of `v` alone.
+#[inline(always)]
+fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v ^= v.wrapping_mul(0x3d20_adea);
     v = v.wrapping_add(seed);
     v = v.wrapping_mul((seed >> 16) | 1);
     v ^= v.wrapping_mul(0x0552_6c56);
-    v ^= v.wrapping_mul(0x53a2_2864);
-    v.reverse_bits()
+    v ^ v.wrapping_mul(0x53a2_2864)
 }
+
+/// A hash-based nested uniform scramble of the 32-bit fraction `x`: each bit is flipped or
+/// not depending on the seed and on the bits above it only (the more significant digits), as
+/// Owen scrambling does; so intervals of `2^-k` are permuted among themselves at every
+/// level. The bits are reversed around [`laine_karras`] (which spreads information upward).
+#[inline]
+pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+use super::rng::mix64;
 
 /// A bijective 32-bit mixer (Wellons's `lowbias32`): distinct inputs give distinct seeds.
 #[inline]
@@ -73,11 +114,13 @@ fn mix32(mut x: u32) -> u32 {
 /// The three seeds of one pattern: the index shuffle and each coordinate's scramble.
 #[inline]
 fn pattern_seeds(pixel_seed: u32, pattern: u32) -> [u32; 3] {
-    let base = mix32(pixel_seed ^ mix32(pattern.wrapping_add(0x9e37_79b9)));
+    // One 64-bit mix for the three (this runs for every number a path takes).
+    let h = mix64(((pixel_seed as u64) << 32 | pattern as u64) ^ 0x6A09_E667_F3BC_C909);
+    let (low, high) = (h as u32, (h >> 32) as u32);
     [
-        mix32(base ^ 0x1b87_3593),
-        mix32(base ^ 0xcc9e_2d51),
-        mix32(base ^ 0x85eb_ca6b),
+        low,
+        high,
+        (low ^ high.rotate_left(16)).wrapping_mul(0x9e37_79b9),
     ]
 }
 
@@ -99,12 +142,22 @@ pub fn pixel_seed(seed: u64, pixel: u32) -> u32 {
 /// [0, 1)^2.
 #[inline]
 pub fn sample_2d(pixel_seed: u32, index: u32, pattern: u32) -> [f32; 2] {
+    sample_2d_of_reversed_index(pixel_seed, index.reverse_bits(), pattern)
+}
+
+/// [`sample_2d`] of the index whose bits reversed are `index_reversed` (the form a path
+/// keeps, which saves a reversal per number).
+#[inline]
+pub fn sample_2d_of_reversed_index(pixel_seed: u32, index_reversed: u32, pattern: u32) -> [f32; 2] {
     let [shuffle, scramble_x, scramble_y] = pattern_seeds(pixel_seed, pattern);
-    let [x, y] = sobol_2d(nested_uniform_scramble(index, shuffle));
-    [
-        to_unit(nested_uniform_scramble(x, scramble_x)),
-        to_unit(nested_uniform_scramble(y, scramble_y)),
-    ]
+    // The shuffled index is `nested_uniform_scramble(index, shuffle)`: kept bit-reversed,
+    // it is also the first dimension (van der Corput's inverse reverses the bits).
+    let shuffled_reversed = laine_karras(index_reversed, shuffle);
+    let shuffled = shuffled_reversed.reverse_bits();
+    // Each coordinate scrambled in reversed form, reversed once at the end.
+    let x = laine_karras(shuffled, scramble_x).reverse_bits();
+    let y = laine_karras(second_dimension_reversed(shuffled), scramble_y).reverse_bits();
+    [to_unit(x), to_unit(y)]
 }
 
 /// The 1-D number of sample `index` of `pattern` for the pixel of seed `pixel_seed`, in
@@ -112,9 +165,17 @@ pub fn sample_2d(pixel_seed: u32, index: u32, pattern: u32) -> [f32; 2] {
 /// of `2^-k` once.
 #[inline]
 pub fn sample_1d(pixel_seed: u32, index: u32, pattern: u32) -> f32 {
+    sample_1d_of_reversed_index(pixel_seed, index.reverse_bits(), pattern)
+}
+
+/// [`sample_1d`] of the index whose bits reversed are `index_reversed`.
+#[inline]
+pub fn sample_1d_of_reversed_index(pixel_seed: u32, index_reversed: u32, pattern: u32) -> f32 {
     let [shuffle, scramble, _] = pattern_seeds(pixel_seed, pattern);
-    let x = nested_uniform_scramble(index, shuffle).reverse_bits();
-    to_unit(nested_uniform_scramble(x, scramble))
+    // As in `sample_2d`: the radical inverse of the shuffled index, reversed, is the
+    // reversed index through the shuffle's permutation.
+    let shuffled = laine_karras(index_reversed, shuffle).reverse_bits();
+    to_unit(laine_karras(shuffled, scramble).reverse_bits())
 }
 
 #[cfg(test)]
@@ -196,6 +257,24 @@ mod tests {
             images.sort_unstable();
             images.dedup();
             assert_eq!(images.len(), 1 << 12, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn fast_samples_match_their_definition() {
+        // sample_2d is the Sobol point of the shuffled index, each coordinate scrambled.
+        for (index, pattern) in [(0, 0), (1, 5), (77, 2), (65_535, 9), (u32::MAX, 3)] {
+            let pixel = pixel_seed(1, index);
+            let [shuffle, scramble_x, scramble_y] = pattern_seeds(pixel, pattern);
+            let [x, y] = sobol_2d(nested_uniform_scramble(index, shuffle));
+            let expected = [
+                to_unit(nested_uniform_scramble(x, scramble_x)),
+                to_unit(nested_uniform_scramble(y, scramble_y)),
+            ];
+            assert_eq!(sample_2d(pixel, index, pattern), expected);
+            assert_eq!(sample_1d(pixel, index, pattern), expected[0]);
+            let shuffled = nested_uniform_scramble(index, shuffle);
+            assert_eq!(second_dimension_reversed(shuffled), y.reverse_bits());
         }
     }
 
