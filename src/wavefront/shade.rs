@@ -85,6 +85,7 @@ pub fn shade_hits(
             count_emission: &mut paths.count_emission[i],
             bsdf_pdf: &mut paths.bsdf_pdf[i],
             alive: &mut paths.alive[i],
+            radiance_scale: &mut paths.radiance_scale[i],
             next_origin: &mut next_rays.origin[i],
             next_direction: &mut next_rays.direction[i],
         };
@@ -128,6 +129,7 @@ struct PathView<'a> {
     count_emission: &'a mut bool,
     bsdf_pdf: &'a mut f32,
     alive: &'a mut bool,
+    radiance_scale: &'a mut f32,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
 }
@@ -323,6 +325,9 @@ fn shade_one(
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
     *path.throughput *= sample.weight;
+    if transmitted {
+        *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
+    }
     // Emission the next hit finds counts in full where no shadow ray could have reached it:
     // after delta lobes, without shadow rays, and through the surface (shadow rays only
     // leave on the front side; rough glass transmits). Elsewhere MIS weights it, or, with
@@ -335,8 +340,12 @@ fn shade_one(
     };
 
     // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
+    // The throughput without the radiance compression of refractions (as pbrt and Mitsuba
+    // play it): inside glass it is 1/eta^2 = 0.44 of what it will be once the path leaves,
+    // and killing 56% of the paths there multiplied the weight of every caustic path that
+    // survived by 2.25.
     if bounce >= params.roulette_min_bounces {
-        let survival = max_component(*path.throughput).min(MAX_SURVIVAL);
+        let survival = (max_component(*path.throughput) / *path.radiance_scale).min(MAX_SURVIVAL);
         if params.sampler.uniform(key, bounce, dim::ROULETTE) >= survival {
             return false;
         }
