@@ -22,5 +22,6 @@ mod large_obj;
 mod materials;
 mod mis;
 mod next_event;
+mod sampler;
 mod shipped_scenes;
 mod textures;
