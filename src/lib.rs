@@ -26,6 +26,7 @@ pub mod camera;
 pub mod error;
 pub mod film;
 pub mod flatten;
+pub mod image_error;
 pub mod lights_environment;
 pub mod math;
 pub mod output;

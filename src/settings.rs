@@ -1,7 +1,7 @@
 //! Render settings, passed explicitly from the CLI (or a test) to the renderer.
 
 use crate::error::{Error, Result};
-use crate::math::rng::DEFAULT_SEED;
+use crate::math::rng::{DEFAULT_SEED, Sampler};
 
 /// Largest accepted image side, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 32_768;
@@ -29,6 +29,8 @@ pub struct RenderSettings {
     pub mis: bool,
     /// Seed of every random number.
     pub seed: u64,
+    /// Independent random numbers, or Owen-scrambled Sobol points (stratified per pixel).
+    pub sampler: Sampler,
     /// Paths traced together through the wavefront stages, one batch per thread at a time
     /// (fewer when many shadow rays per hit would make the shadow buffers large). Only speed
     /// and memory depend on it, never the image.
@@ -50,6 +52,7 @@ impl Default for RenderSettings {
             shadow_rays: 1,
             mis: true,
             seed: DEFAULT_SEED,
+            sampler: Sampler::Independent,
             batch_size: 4096,
             roulette_min_bounces: 1,
             max_depth: 1024,

@@ -25,5 +25,6 @@ mod materials;
 mod mis;
 mod next_event;
 mod placement;
+mod sampler;
 mod shipped_scenes;
 mod textures;
