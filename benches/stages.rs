@@ -127,7 +127,15 @@ fn prepare_sub_batch(
         per_path: SHADOW_RAYS as usize,
         ..Default::default()
     };
-    generate_camera_rays(camera, rng::DEFAULT_SEED, pixels, 0, &mut paths, &mut rays);
+    generate_camera_rays(
+        camera,
+        rng::DEFAULT_SEED,
+        rng::Sampler::Independent,
+        pixels,
+        0,
+        &mut paths,
+        &mut rays,
+    );
     intersect_closest(scene, &rays, &mut hits);
     let defaults = wavetrace::RenderSettings::default();
     let params = ShadeParams {
@@ -136,6 +144,7 @@ fn prepare_sub_batch(
         mis: true, // the renderer's default
         roulette_min_bounces: defaults.roulette_min_bounces,
         max_depth: defaults.max_depth,
+        sampler: defaults.sampler,
     };
     let camera_paths = paths.clone();
     shade_hits(
@@ -182,6 +191,7 @@ fn stages(c: &mut Criterion) {
                     generate_camera_rays(
                         &camera,
                         rng::DEFAULT_SEED,
+                        rng::Sampler::Independent,
                         pixels,
                         0,
                         &mut paths,

@@ -33,6 +33,7 @@ pub mod error;
 pub mod film;
 pub(crate) mod flatten;
 pub(crate) mod geometry;
+pub(crate) mod image_error;
 pub(crate) mod lights;
 pub mod math;
 pub mod output;
@@ -61,6 +62,7 @@ pub mod internals {
     pub use crate::camera::PinholeCamera;
     pub use crate::geometry::Shape;
     pub use crate::lights::LightTable;
+    pub use crate::lights::environment::Environment;
     pub use crate::render_scene::{PACKET_SIZE, Packet, Ray, TraversalStack};
     pub use crate::texture::{SurfaceTextures, Texture, TextureRef};
     pub use crate::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
@@ -68,4 +70,9 @@ pub mod internals {
     pub use crate::wavefront::intersect::intersect_closest;
     pub use crate::wavefront::shade::{ShadeParams, shade_hits};
     pub use crate::wavefront::shadow::trace_shadow_rays;
+
+    /// Error measures between an image and a reference (for the examples).
+    pub mod image_error {
+        pub use crate::image_error::*;
+    }
 }

@@ -12,7 +12,10 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use wavetrace::scene::load::{LoadOptions, load_scene_with};
+use wavetrace::scene::load::{
+    LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning, is_model_file,
+    load_scene_placed,
+};
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
 use wavetrace::{Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image};
 
@@ -50,12 +53,20 @@ struct BenchSeedArgs {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// Scene file (.toml) or model file (.gltf, .glb, .obj). A model with no emitter and no
-    /// light is placed in the seed room and seen from the room's camera.
+    /// Scene file (.toml) or model file (.gltf, .glb, .obj). A model that does not light
+    /// itself (no punctual light, and no emitter with a camera of its own) is placed in the
+    /// seed room, facing and filling the room's camera.
     scene: PathBuf,
     /// Place a model file in the seed room even if it has its own lights.
     #[arg(long)]
     in_room: bool,
+    /// The model file's up axis: y (glTF, Blender's OBJ export; default) or z.
+    #[arg(long, value_parser = ["y", "z"])]
+    up: Option<String>,
+    /// How a glTF file's light intensities are read: spec (candela and lux, 683 lm/W, as
+    /// Blender exports by default), unitless (read as W/sr and W/m^2), raw (Blender's watts).
+    #[arg(long, value_parser = ["spec", "unitless", "raw"])]
+    light_units: Option<String>,
     /// Render from the camera of this name (default: the file's first camera).
     #[arg(long)]
     camera: Option<String>,
@@ -64,11 +75,11 @@ struct RenderArgs {
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Image width in pixels (default: the scene's, else 800, or from the height and the
-    /// camera's aspect ratio).
+    /// camera's aspect ratio, square without one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     width: Option<u32>,
     /// Image height in pixels (default: the scene's, else 800, or from the width and the
-    /// camera's aspect ratio).
+    /// camera's aspect ratio, square without one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
     /// Samples per pixel (default: the scene's, else 16; with --time: no limit but the time).
@@ -98,7 +109,7 @@ struct RenderArgs {
     #[arg(long, default_value_t = RenderSettings::default().batch_size,
           value_parser = clap::value_parser!(u32).range(1..=1 << 24))]
     batch_size: u32,
-    /// No progress bar.
+    /// Print nothing on success but warnings: no progress bar, no summary.
     #[arg(short, long)]
     quiet: bool,
 }
@@ -210,23 +221,41 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         .build()
         .context("cannot start worker threads")?;
     pool.install(|| {
+        if (args.up.is_some() || args.light_units.is_some()) && !is_model_file(&args.scene) {
+            anyhow::bail!(
+                "{}: --up and --light-units apply to model files; a scene file states them \
+                 per [[model]] (up = \"z\", light_units = \"unitless\")",
+                args.scene.display()
+            );
+        }
         let options = LoadOptions {
             in_room: args.in_room,
             camera: args.camera.clone(),
+            up: match args.up.as_deref() {
+                Some("z") => UpAxis::Z,
+                _ => UpAxis::Y,
+            },
+            light_units: match args.light_units.as_deref() {
+                Some("unitless") => LightUnits::Unitless,
+                Some("raw") => LightUnits::Raw,
+                _ => LightUnits::Spec,
+            },
         };
-        let scene = load_scene_with(&args.scene, &options)?;
+        let (scene, placement) = load_scene_placed(&args.scene, &options)?;
         // Refuse an unwritable output before spending time on the render.
         wavetrace::output::check_writable(&output)?;
         let flat = flatten(&scene.world, &args.scene)?;
         for warning in scene.warnings.iter().chain(flat.warnings()) {
             eprintln!("warning: {warning}");
         }
-        eprintln!(
-            "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
-            flat.primitive_count(),
-            flat.flatten_times().bvh_build.as_secs_f64() * 1e3,
-            flat.flatten_times().total.as_secs_f64() * 1e3
-        );
+        if !args.quiet {
+            eprintln!(
+                "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
+                flat.primitive_count(),
+                flat.flatten_times().bvh_build.as_secs_f64() * 1e3,
+                flat.flatten_times().total.as_secs_f64() * 1e3
+            );
+        }
         let overrides = RenderOverrides {
             width: args.width,
             height: args.height,
@@ -236,6 +265,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             mis: Some(!args.no_mis),
             seed: Some(args.seed),
             batch_size: Some(args.batch_size),
+            sampler: None,
         };
         let settings =
             RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);
@@ -256,17 +286,19 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             )
             .expect("valid template"),
         );
-        eprintln!(
-            "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
-            args.scene.display(),
-            settings.width,
-            settings.height,
-            match args.time {
-                Some(t) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
-                Some(t) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
-                None => format!("{} spp", settings.spp),
-            }
-        );
+        if !args.quiet {
+            eprintln!(
+                "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
+                args.scene.display(),
+                settings.width,
+                settings.height,
+                match args.time {
+                    Some(t) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
+                    Some(t) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
+                    None => format!("{} spp", settings.spp),
+                }
+            );
+        }
         let start = Instant::now();
         let mut budget = args.time.map(|b| TimeBudget::new(start, b));
         let (film, stats) = render(&flat, &settings, |p| {
@@ -287,16 +319,25 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         bar.finish_and_clear();
 
         write_image(&output, &film, args.exposure)?;
-        eprintln!(
-            "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
-            settings.width,
-            settings.height,
-            samples_held(&stats, settings.pixel_count()),
-            settings.shadow_rays,
-            rayon::current_num_threads(),
-            output.display()
-        );
-        eprintln!("{}", stats.summary());
+        if placement == Placement::AsIs
+            && let Some(warning) = dark_image_warning(&film.resolve(), args.exposure)
+        {
+            eprintln!("warning: {warning}");
+        }
+        if !args.quiet {
+            eprintln!(
+                "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
+                settings.width,
+                settings.height,
+                samples_held(&stats, settings.pixel_count()),
+                settings.shadow_rays,
+                rayon::current_num_threads(),
+                output.display()
+            );
+        }
+        if !args.quiet {
+            eprintln!("{}", stats.summary());
+        }
         Ok(match received(&stop_signal) {
             Some(signal) if stats.interrupted => {
                 eprintln!(

@@ -3,7 +3,7 @@
 //! file's `[render]` table over the defaults ([`RenderSettings::resolve`]).
 
 use crate::error::{Error, Result};
-use crate::math::rng::DEFAULT_SEED;
+use crate::math::rng::{DEFAULT_SEED, Sampler};
 use crate::scene::load::SceneDefaults;
 
 /// Largest accepted image side, in pixels.
@@ -32,6 +32,8 @@ pub struct RenderSettings {
     pub mis: bool,
     /// Seed of every random number.
     pub seed: u64,
+    /// Independent random numbers, or Owen-scrambled Sobol points (stratified per pixel).
+    pub sampler: Sampler,
     /// Paths traced together through the wavefront stages, one batch per thread at a time
     /// (fewer when many shadow rays per hit would make the shadow buffers large). Only speed
     /// and memory depend on it, never the image.
@@ -53,6 +55,7 @@ impl Default for RenderSettings {
             shadow_rays: 1,
             mis: true,
             seed: DEFAULT_SEED,
+            sampler: Sampler::Independent,
             batch_size: 4096,
             roulette_min_bounces: 1,
             max_depth: 1024,
@@ -78,12 +81,16 @@ pub struct RenderOverrides {
     pub seed: Option<u64>,
     /// Paths per wavefront batch.
     pub batch_size: Option<u32>,
+    /// Where the random numbers come from.
+    pub sampler: Option<Sampler>,
 }
 
 impl RenderSettings {
     /// The settings of a render: each one from `overrides` if set, else from the scene file's
-    /// `[render]` table (`scene`), else the default. A missing image side follows the
-    /// camera's aspect ratio (`aspect`, width / height) when it has one; with neither side
+    /// `[render]` table (`scene`), else the default. The image size comes whole from one
+    /// place: the overrides if they give a side, else the scene file. A missing side follows
+    /// the camera's aspect ratio (`aspect`, width / height), else the scene file's image's,
+    /// else the image is square, never the other side of the scene's size; with neither side
     /// given, the larger side is the default's.
     pub fn resolve(
         scene: &SceneDefaults,
@@ -91,12 +98,25 @@ impl RenderSettings {
         aspect: Option<f32>,
     ) -> RenderSettings {
         let defaults = RenderSettings::default();
-        let (width, height) = image_size(
-            overrides.width.or(scene.width),
-            overrides.height.or(scene.height),
-            aspect,
-            (defaults.width, defaults.height),
-        );
+        let scene_aspect = match (scene.width, scene.height) {
+            (Some(w), Some(h)) => Some(w as f32 / h as f32),
+            _ => None,
+        };
+        let (width, height) = if overrides.width.is_some() || overrides.height.is_some() {
+            image_size(
+                overrides.width,
+                overrides.height,
+                aspect.or(scene_aspect),
+                (defaults.width, defaults.height),
+            )
+        } else {
+            image_size(
+                scene.width,
+                scene.height,
+                aspect,
+                (defaults.width, defaults.height),
+            )
+        };
         RenderSettings {
             width,
             height,
@@ -107,6 +127,7 @@ impl RenderSettings {
             mis: overrides.mis.unwrap_or(defaults.mis),
             seed: overrides.seed.unwrap_or(defaults.seed),
             batch_size: overrides.batch_size.unwrap_or(defaults.batch_size),
+            sampler: overrides.sampler.unwrap_or(defaults.sampler),
             ..defaults
         }
     }
@@ -154,8 +175,9 @@ impl RenderSettings {
     }
 }
 
-/// The image size: what is given; a missing side follows the camera's aspect ratio (width /
-/// height) when it has one; with neither side given the larger side is the default's.
+/// The image size: what is given; a missing side follows the aspect ratio (width / height)
+/// when there is one, else the image is square; with neither side given the larger side is
+/// the default's.
 fn image_size(
     width: Option<u32>,
     height: Option<u32>,
@@ -170,7 +192,9 @@ fn image_size(
         (None, Some(h), Some(a)) => (side(h as f32 * a), h),
         (None, None, Some(a)) if a >= 1.0 => (default.0, side(default.0 as f32 / a)),
         (None, None, Some(a)) => (side(default.1 as f32 * a), default.1),
-        (w, h, None) => (w.unwrap_or(default.0), h.unwrap_or(default.1)),
+        (Some(w), None, None) => (w, w),
+        (None, Some(h), None) => (h, h),
+        (None, None, None) => default,
     }
 }
 

@@ -11,7 +11,7 @@
 //!   incident side.
 
 #[cfg(test)]
-mod chi_square;
+pub(crate) mod chi_square;
 pub mod dielectric;
 pub mod lambert;
 pub mod metallic_roughness;
@@ -78,6 +78,25 @@ impl Bsdf {
     #[inline]
     pub fn is_delta(&self) -> bool {
         !matches!(self, Bsdf::Lambertian { .. } | Bsdf::MetallicRoughness(_))
+    }
+
+    /// The factor `1 / eta^2` by which a sample transmitted from `wo` (local frame) through
+    /// this surface compresses radiance (part of the sample's weight: see dielectric.rs); 1
+    /// for reflection and for surfaces that transmit nothing. Russian roulette divides it out,
+    /// since it cancels when the path leaves the medium again.
+    #[inline]
+    pub fn radiance_compression(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        let ior = match *self {
+            Bsdf::Dielectric { ior, .. } => ior,
+            Bsdf::MetallicRoughness(params) => params.ior,
+            Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } => return 1.0,
+        };
+        if wo.z * wi.z >= 0.0 {
+            return 1.0;
+        }
+        // Inside over outside when entering (wo outside, +z), its inverse when leaving.
+        let eta = if wo.z > 0.0 { ior } else { 1.0 / ior };
+        1.0 / (eta * eta)
     }
 
     /// Whether the surface reflects nothing at all (a path ends on it).
@@ -225,5 +244,32 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn radiance_compression_matches_the_refracted_weight_and_cancels_on_leaving() {
+        let glass = Bsdf::Dielectric {
+            ior: 1.5,
+            fresnel: FresnelModel::Exact,
+            tint: Rgb::ONE,
+        };
+        let outside = Vec3A::new(0.0, 0.6, 0.8);
+        // A refracted sample (u_lobe 0.99 > reflectance) carries weight tint / eta^2.
+        let entering = glass.sample(outside, 0.99, Vec2::ZERO).unwrap();
+        assert!(entering.wi.z < 0.0);
+        let scale = glass.radiance_compression(outside, entering.wi);
+        assert!((scale - 1.0 / 2.25).abs() < 1e-6 && (entering.weight.x - scale).abs() < 1e-6);
+        // Leaving from inside: eta^2, so that a path in and out is not scaled at all.
+        let inside = Vec3A::new(0.0, 0.6, -0.8);
+        let leaving = glass.sample(inside, 0.99, Vec2::ZERO).unwrap();
+        assert!(leaving.wi.z > 0.0);
+        let out_scale = glass.radiance_compression(inside, leaving.wi);
+        assert!((out_scale - leaving.weight.x).abs() < 1e-5, "{out_scale}");
+        assert!((scale * out_scale - 1.0).abs() < 1e-6, "{out_scale}");
+        // Reflection and surfaces that transmit nothing compress nothing.
+        let reflected = Vec3A::new(0.0, -0.6, 0.8);
+        assert_eq!(glass.radiance_compression(outside, reflected), 1.0);
+        let wall = Bsdf::Lambertian { albedo: Rgb::ONE };
+        assert_eq!(wall.radiance_compression(outside, -reflected), 1.0);
     }
 }

@@ -4,6 +4,8 @@
 //! to its power, and sampled four lanes at a time; a scene lit by one area light takes the
 //! fast path of [`single`].
 
+#[allow(dead_code)] // until the renderer reads it
+pub(crate) mod environment;
 mod punctual;
 mod single;
 

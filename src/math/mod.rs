@@ -4,6 +4,7 @@
 pub mod frame;
 pub mod rng;
 pub mod sampling;
+pub mod sobol;
 
 pub use glam::{Affine3A, BVec4A, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
 

@@ -5,6 +5,7 @@
 //! The dimension table below is the single place that says which number is used for what.
 
 use super::Vec2;
+use super::sobol;
 
 /// The default seed of the CLI and of the tests.
 pub const DEFAULT_SEED: u64 = 0x5EED_2026;
@@ -30,7 +31,7 @@ pub mod dim {
 
 /// SplitMix64's finaliser: a bijective 64-bit mixer with full avalanche.
 #[inline]
-fn mix64(mut z: u64) -> u64 {
+pub(super) fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
@@ -83,6 +84,103 @@ pub fn uniform2(key: u64, bounce: u32, dimension: u32) -> Vec2 {
     )
 }
 
+/// Which numbers drive the paths. Either way every number is a pure function of (seed, pixel,
+/// sample index, bounce, dimension): images never depend on threads or batches.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Sampler {
+    /// Independent uniform numbers from a counter-based hash.
+    #[default]
+    Independent,
+    /// Owen-scrambled Sobol points (see [`sobol`]): the samples of a pixel are stratified in
+    /// every pattern of [`dim`] (the camera jitter, the BSDF lobe and direction, roulette, the
+    /// shift of the shadow rays' lattice) for the first [`SOBOL_BOUNCES`] bounces;
+    /// independent numbers past them.
+    Sobol,
+}
+
+/// Bounces whose numbers the Sobol sampler stratifies; later bounces add little to the
+/// image and take independent numbers.
+pub const SOBOL_BOUNCES: u32 = 8;
+
+/// Patterns a bounce may use with the Sobol sampler: one per dimension of [`dim`], plus the
+/// point on the light after `LIGHT_SAMPLES`.
+const PATTERNS_PER_BOUNCE: u32 = 8;
+
+impl Sampler {
+    /// The key of one path sample. Independent: a hash of (seed, pixel, sample index). Sobol:
+    /// the pixel's scramble seed (distinct for every pixel) in the high half, the sample index
+    /// with its bits reversed (the form the sampler works on) in the low half.
+    #[inline]
+    pub fn path_key(self, seed: u64, pixel: u32, sample_index: u32) -> u64 {
+        match self {
+            Sampler::Independent => path_key(seed, pixel, sample_index),
+            Sampler::Sobol => {
+                (sobol::pixel_seed(seed, pixel) as u64) << 32 | sample_index.reverse_bits() as u64
+            }
+        }
+    }
+
+    /// The Sobol pattern of `dimension` of `bounce` and the path's (pixel seed, reversed
+    /// sample index), or `None` past the bounces it covers.
+    #[inline(always)]
+    fn sobol_pattern(self, key: u64, bounce: u32, dimension: u32) -> Option<(u32, u32, u32)> {
+        (self == Sampler::Sobol && bounce < SOBOL_BOUNCES).then(|| {
+            debug_assert!(dimension < PATTERNS_PER_BOUNCE);
+            let pattern = bounce * PATTERNS_PER_BOUNCE + dimension;
+            ((key >> 32) as u32, key as u32, pattern)
+        })
+    }
+
+    /// The key independent numbers use: a Sobol key is structured, so it is hashed first.
+    #[inline(always)]
+    fn independent_key(self, key: u64) -> u64 {
+        match self {
+            Sampler::Independent => key,
+            Sampler::Sobol => mix64(key ^ 0xD1B5_4A32_D192_ED03),
+        }
+    }
+
+    /// A uniform number in [0, 1) for `dimension` of `bounce` of the path with key `key`.
+    #[inline]
+    pub fn uniform(self, key: u64, bounce: u32, dimension: u32) -> f32 {
+        match self.sobol_pattern(key, bounce, dimension) {
+            Some((pixel, index, pattern)) => {
+                sobol::sample_1d_of_reversed_index(pixel, index, pattern)
+            }
+            None => uniform(self.independent_key(key), bounce, dimension),
+        }
+    }
+
+    /// Two uniform numbers for `dimension` of `bounce` (with the Sobol sampler, one 2-D
+    /// pattern; independent: dimensions `dimension` and `dimension + 1`).
+    #[inline]
+    pub fn uniform2(self, key: u64, bounce: u32, dimension: u32) -> Vec2 {
+        match self.sobol_pattern(key, bounce, dimension) {
+            Some((pixel, index, pattern)) => {
+                Vec2::from_array(sobol::sample_2d_of_reversed_index(pixel, index, pattern))
+            }
+            None => uniform2(self.independent_key(key), bounce, dimension),
+        }
+    }
+
+    /// Three uniform numbers for light samples of `bounce` (the light choice, then the point
+    /// on it; with the Sobol sampler a 1-D pattern and a 2-D one).
+    #[inline]
+    pub fn uniform3(self, key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
+        match self.sobol_pattern(key, bounce, dimension) {
+            Some((pixel, index, pattern)) => (
+                sobol::sample_1d_of_reversed_index(pixel, index, pattern),
+                Vec2::from_array(sobol::sample_2d_of_reversed_index(
+                    pixel,
+                    index,
+                    pattern + 1,
+                )),
+            ),
+            None => uniform3(self.independent_key(key), bounce, dimension),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -130,5 +228,41 @@ mod tests {
             "covariance {}",
             sxy / n
         );
+    }
+
+    #[test]
+    fn sobol_sampler_stratifies_a_pixels_samples_and_is_independent_past_its_bounces() {
+        let sampler = Sampler::Sobol;
+        let keys: Vec<u64> = (0..16)
+            .map(|i| sampler.path_key(DEFAULT_SEED, 123, i))
+            .collect();
+        // 16 samples of the camera jitter: one in each 1/4 x 1/4 cell.
+        let mut cells: Vec<u32> = keys
+            .iter()
+            .map(|&k| {
+                let u = sampler.uniform2(k, 0, dim::PIXEL_JITTER);
+                (u.x * 4.0) as u32 * 4 + (u.y * 4.0) as u32
+            })
+            .collect();
+        cells.sort_unstable();
+        assert_eq!(cells, (0..16).collect::<Vec<_>>());
+        // Roulette of bounce 3: one number in each 1/16.
+        let mut strata: Vec<u32> = keys
+            .iter()
+            .map(|&k| (sampler.uniform(k, 3, dim::ROULETTE) * 16.0) as u32)
+            .collect();
+        strata.sort_unstable();
+        assert_eq!(strata, (0..16).collect::<Vec<_>>());
+        // Past the covered bounces: hashed numbers, still deterministic and in range.
+        let k = keys[5];
+        let late = sampler.uniform(k, SOBOL_BOUNCES, dim::ROULETTE);
+        assert_eq!(late, sampler.uniform(k, SOBOL_BOUNCES, dim::ROULETTE));
+        assert!((0.0..1.0).contains(&late));
+        // Distinct pixels and samples have distinct keys.
+        assert_ne!(k, sampler.path_key(DEFAULT_SEED, 124, 5));
+        // The independent sampler is the plain hash, unchanged.
+        let i = Sampler::Independent;
+        assert_eq!(i.path_key(9, 1, 2), path_key(9, 1, 2));
+        assert_eq!(i.uniform(77, 1, 2), uniform(77, 1, 2));
     }
 }

@@ -66,6 +66,9 @@ pub struct PathState {
     pub bsdf_pdf: Vec<f32>,
     /// Whether the path continues after this bounce (set by shading).
     pub alive: Vec<bool>,
+    /// Product of the radiance compressions (`1 / eta^2`) of the refractions so far, which
+    /// Russian roulette divides out of the throughput.
+    pub radiance_scale: Vec<f32>,
 }
 
 impl PathState {
@@ -88,6 +91,7 @@ impl PathState {
         self.count_emission.resize(n, false);
         self.bsdf_pdf.resize(n, 0.0);
         self.alive.resize(n, false);
+        self.radiance_scale.resize(n, 1.0);
     }
 }
 
@@ -144,6 +148,7 @@ pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut
         paths.radiance[kept] = paths.radiance[i];
         paths.count_emission[kept] = paths.count_emission[i];
         paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
+        paths.radiance_scale[kept] = paths.radiance_scale[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

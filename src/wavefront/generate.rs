@@ -3,14 +3,15 @@
 use super::batch::{PathState, RayBatch};
 use crate::camera::PinholeCamera;
 use crate::math::Rgb;
-use crate::math::rng::{self, dim};
+use crate::math::rng::{Sampler, dim};
 use std::ops::Range;
 
-/// Starts one path per pixel of `pixels` for sample `sample_index`: resets the path state and
+/// Starts one path per pixel of `pixels` for sample `sample_index` (numbers from `sampler`): resets the path state and
 /// writes the camera rays (box filter: the sample is uniform inside its pixel).
 pub fn generate_camera_rays(
     camera: &PinholeCamera,
     seed: u64,
+    sampler: Sampler,
     pixels: Range<u32>,
     sample_index: u32,
     paths: &mut PathState,
@@ -20,14 +21,15 @@ pub fn generate_camera_rays(
     paths.resize(n);
     rays.resize(n);
     for (i, pixel) in pixels.enumerate() {
-        let key = rng::path_key(seed, pixel, sample_index);
+        let key = sampler.path_key(seed, pixel, sample_index);
         paths.pixel[i] = pixel;
         paths.rng_key[i] = key;
         paths.throughput[i] = Rgb::ONE;
         paths.radiance[i] = Rgb::ZERO;
         paths.count_emission[i] = true;
+        paths.radiance_scale[i] = 1.0;
         let (origin, direction) =
-            camera.generate_ray(pixel, rng::uniform2(key, 0, dim::PIXEL_JITTER));
+            camera.generate_ray(pixel, sampler.uniform2(key, 0, dim::PIXEL_JITTER));
         // flatten refused non-finite cameras, so every camera ray is valid
         debug_assert!(origin.is_finite() && direction.is_normalized());
         (rays.origin[i], rays.direction[i]) = (origin, direction);

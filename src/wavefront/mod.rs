@@ -191,6 +191,7 @@ impl Batch<'_> {
             generate::generate_camera_rays(
                 self.camera,
                 settings.seed,
+                settings.sampler,
                 film.pixels(),
                 self.sample_index,
                 &mut b.paths,
@@ -217,6 +218,7 @@ impl Batch<'_> {
                 mis: settings.mis,
                 roulette_min_bounces: settings.roulette_min_bounces,
                 max_depth: settings.max_depth,
+                sampler: settings.sampler,
             };
             stats.capped_paths += timed(&mut stats.stage_time[2], || {
                 shade::shade_hits(

@@ -11,7 +11,7 @@ use super::surface;
 use crate::bsdf::Bsdf;
 use crate::lights::{LIGHT_LANES, LightSamples, LightUniforms};
 use crate::math::frame::Frame;
-use crate::math::rng::{self, dim};
+use crate::math::rng::dim;
 use crate::math::sampling::Rank1Lattice;
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, offset_ray_origin, transpose4};
 use crate::render_scene::RenderScene;
@@ -117,7 +117,9 @@ pub(super) fn sample_lights(
         lattice.len()
     };
     // The lattice's shift for this path: one hash for all its shadow rays.
-    let shift = rng::uniform3(key, params.bounce, dim::LIGHT_SAMPLES);
+    let shift = params
+        .sampler
+        .uniform3(key, params.bounce, dim::LIGHT_SAMPLES);
     // The shading frame and the side the shadow rays leave from, one vector per
     // coordinate, for the lanes.
     let [s, t, n, side] =

@@ -233,7 +233,8 @@ fn gltf_cases() -> Vec<Case> {
                 d["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(7)
             }),
             &[
-                "mesh 0, primitive 0",
+                "nothing renderable is left",
+                "mesh 'Wedge' (index 0), primitive 0",
                 "accessor 7 does not exist (the file has 2)",
             ],
         ),

@@ -1,4 +1,4 @@
-//! The Cornell box OBJ/MTL of `../shared/reference/cornell-box`, rendered with its camera,
+//! The Cornell box OBJ/MTL of `tests/data/cornell-box`, rendered with its camera,
 //! against Mitsuba 3's converged reference (16384 spp, see that directory's README).
 //!
 //! The comparison is on the mean luminance of each 16 x 16-pixel block (a 16 x 16 grid). Two
@@ -32,9 +32,8 @@ const BLOCK: u32 = 16;
 /// Largest relative error of a reference block mean (reference README: max 0.34 %).
 const REFERENCE_BLOCK_ERROR: f64 = 0.0034;
 
-fn shared_dir() -> PathBuf {
-    // CI checks the repository out with `shared/` beside it, as on the development machine.
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference/cornell-box")
+fn reference_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/cornell-box")
 }
 
 #[derive(serde::Deserialize)]
@@ -78,12 +77,7 @@ fn block_means(image: &Image, f: impl Fn(usize) -> f64) -> Vec<f64> {
 
 #[test]
 fn cornell_box_matches_reference() {
-    let dir = shared_dir();
-    assert!(
-        dir.is_dir(),
-        "the shared reference data is missing: expected {} (the repository's sibling `shared/`)",
-        dir.display()
-    );
+    let dir = reference_dir();
     let obj = dir.join("cornell-box.obj");
     let camera: CameraJson =
         serde_json::from_str(&std::fs::read_to_string(dir.join("camera.json")).unwrap()).unwrap();

@@ -10,7 +10,7 @@
 //! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
 //! documents the mapping.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check};
+use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_fix};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
@@ -20,19 +20,16 @@ use crate::scene::{
 use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
 use gltf::mesh::Mode;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::sync::Arc;
 
-/// Extensions a file may list in `extensionsRequired`: those whose absence would change the
-/// image are read; the others (unlit, specular, ...) only refine what we approximate anyway.
-const SUPPORTED_REQUIRED: &[&str] = &[
-    "KHR_lights_punctual",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_transmission",
-    "KHR_texture_transform",
-];
+/// Base colour of primitives without a material (Blender's importer default).
+const DEFAULT_GREY: f32 = 0.8;
+/// Roughness of primitives without a material (Blender's Principled BSDF default).
+const DEFAULT_ROUGHNESS: f32 = 0.5;
+/// F0 of dielectrics in the specular-glossiness to metallic-roughness conversion.
+const DIELECTRIC_F0: f32 = 0.04;
 
 /// How one glTF material appears in the world.
 struct ImportedMaterial {
@@ -53,18 +50,21 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         action: "cannot read",
         source,
     })?;
-    if gltf_check::path_is_glb(path) || bytes.starts_with(b"glTF") {
+    let mut warnings = Vec::new();
+    let (json, blob) = if gltf_check::path_is_glb(path) || bytes.starts_with(b"glTF") {
         gltf_check::check_glb(path, &bytes)?;
-    }
-    let unchecked = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| match e {
-        gltf::Error::Deserialize(e) => match gltf::binary::Glb::from_slice(&bytes) {
-            Ok(glb) => gltf_check::json_error(path, &glb.json, true, &e),
-            Err(_) => gltf_check::json_error(path, &bytes, false, &e),
-        },
-        other => Error::input(path, None, format!("not a valid glTF file: {other}")),
-    })?;
-    for ext in unchecked.extensions_required() {
-        if !SUPPORTED_REQUIRED.contains(&ext) {
+        let glb = gltf::binary::Glb::from_slice(&bytes)
+            .map_err(|e| Error::input(path, None, format!("not a valid glTF file: {e}")))?;
+        let json = gltf_fix::parse_root(path, &glb.json, true, &mut warnings)?;
+        (json, glb.bin.map(|b| b.into_owned()))
+    } else {
+        (
+            gltf_fix::parse_root(path, &bytes, false, &mut warnings)?,
+            None,
+        )
+    };
+    for ext in &json.extensions_required {
+        if !gltf_fix::SUPPORTED_REQUIRED.contains(&ext.as_str()) {
             return Err(Error::input(
                 path,
                 None,
@@ -100,50 +100,34 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         )
     };
     // gltf-json 1.4.1's validation reads a primitive's POSITION accessor before checking that
-    // it exists, and panics when it does not (found by fuzzing): check that first.
-    let json = unchecked.document.into_json();
-    for (m, mesh) in json.meshes.iter().enumerate() {
-        for (p, primitive) in mesh.primitives.iter().enumerate() {
-            let named = primitive
-                .attributes
-                .values()
-                .chain(primitive.indices.as_ref());
-            if let Some(bad) = named
-                .map(|a| a.value())
-                .find(|&a| a >= json.accessors.len())
-            {
-                return Err(Error::input(
-                    path,
-                    Some(format!("mesh {m}, primitive {p}")),
-                    format!(
-                        "accessor {bad} does not exist (the file has {})",
-                        json.accessors.len()
-                    ),
-                ));
-            }
-        }
-    }
+    // it exists, and panics when it does not (found by fuzzing): `gltf_fix` drops such
+    // primitives before validation.
+    // Checked above: gltf-json's validation refuses required extensions it does not know
+    // itself, even those with a fallback.
+    let mut json = json;
+    json.extensions_required.clear();
     let gltf = gltf::Gltf {
         document: gltf::Document::from_json(json).map_err(gltf_error)?,
-        blob: unchecked.blob,
+        blob,
     };
     let base = path.parent().unwrap_or(Path::new("."));
     let gltf::Gltf { document, blob } = gltf;
     let buffers = gltf_check::import_buffers(path, &document, base, blob)?;
     gltf_check::check_ranges(path, &document)?;
 
-    let mut warnings = Vec::new();
-    let textures = import_textures(&document, base, &buffers, path)?;
+    gltf_fix::survey(path, &document, &mut warnings);
+    let textures = import_textures(&document, base, &buffers, path, &mut warnings);
     let materials: Vec<ImportedMaterial> = document
         .materials()
         .map(|m| import_material(&m, &textures, &mut warnings))
         .collect();
     let default_material = ImportedMaterial {
-        // glTF's default material: base colour 1, metallic 1, roughness 1.
+        // Not glTF's default material (white metal, roughness 1, which Cycles users know as
+        // grey plastic) but what Blender's importer gives: a grey dielectric.
         material: Material::MetallicRoughness {
-            base_color: Rgb::ONE,
-            metallic: 1.0,
-            roughness: 1.0,
+            base_color: Rgb::splat(DEFAULT_GREY),
+            metallic: 0.0,
+            roughness: DEFAULT_ROUGHNESS,
             specular: 1.0,
             specular_color: Rgb::ONE,
             ior: 1.5,
@@ -166,6 +150,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         .collect();
     stack.reverse(); // visit in document order
     let node_count = document.nodes().len();
+    // One warning per bad primitive even when several nodes use its mesh.
+    let (mut skip_warned, mut lines_warned) = (HashSet::new(), HashSet::new());
+    let (mut primitives_seen, mut primitives_read, mut lines_skipped) = (0usize, 0usize, 0usize);
+    let mut first_skip: Option<String> = None;
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > node_count {
             return Err(Error::input(
@@ -194,8 +182,26 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     .material()
                     .index()
                     .map_or(&default_material, |i| &materials[i]);
-                let (mesh_data, tangents) =
-                    read_primitive(&primitive, &mesh, imported, &buffers, path)?;
+                primitives_seen += 1;
+                let read = read_primitive(&primitive, &mesh, imported, &buffers, path);
+                let (mesh_data, tangents) = match read {
+                    Ok(Some(read)) => read,
+                    Ok(None) => {
+                        if lines_warned.insert((mesh.index(), primitive.index())) {
+                            lines_skipped += 1;
+                        }
+                        continue;
+                    }
+                    Err(e) => {
+                        if skip_warned.insert((mesh.index(), primitive.index())) {
+                            let message = format!("{e}; the primitive is skipped");
+                            first_skip.get_or_insert_with(|| message.clone());
+                            warnings.push(message);
+                        }
+                        continue;
+                    }
+                };
+                primitives_read += 1;
                 let entity = world.spawn((
                     Name(name.clone()),
                     Transform(world_from_node),
@@ -256,6 +262,29 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             stack.push((child, world_from_node, depth + 1));
         }
     }
+    if lines_skipped > 0 {
+        warnings.push(format!(
+            "{}: points and lines are not rendered ({lines_skipped} primitive{} skipped)",
+            path.display(),
+            gltf_fix::plural(lines_skipped)
+        ));
+    }
+    let dropped_before = document.meshes().any(|m| m.primitives().next().is_none());
+    if primitives_read == 0 && (primitives_seen > 0 || dropped_before) {
+        let has_lights = world.query::<&PunctualLight>().iter().next().is_some();
+        if !has_lights {
+            let why = first_skip
+                .or_else(|| warnings.iter().find(|w| w.contains("skipped")).cloned())
+                .unwrap_or_else(|| "only points and lines".to_string());
+            let prefix = format!("{}:", path.display());
+            let why = why.strip_prefix(&prefix).unwrap_or(&why).trim_start();
+            return Err(Error::input(
+                path,
+                None,
+                format!("nothing renderable is left in the file: {why}"),
+            ));
+        }
+    }
     Ok(Scene {
         world,
         defaults: SceneDefaults::default(),
@@ -304,78 +333,169 @@ fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
         if let Some(n) = m.normal_texture() {
             uses.push((n.texture().index(), Encoding::Linear));
         }
+        if let Some(index) = spec_gloss_diffuse_texture(&m) {
+            uses.push((index, Encoding::Srgb));
+        }
     }
+    uses.retain(|&(i, _)| i < document.textures().len());
     uses.sort_by_key(|&(i, e)| (i, e == Encoding::Linear));
     uses.dedup();
     uses
 }
 
+/// The materials that use each image, as "material 'A', material 'B'", for warnings.
+fn image_users(document: &gltf::Document) -> HashMap<usize, String> {
+    let mut users: HashMap<usize, Vec<String>> = HashMap::new();
+    for m in document.materials() {
+        let pbr = m.pbr_metallic_roughness();
+        let mut textures: Vec<gltf::Texture> = [pbr.base_color_texture(), m.emissive_texture()]
+            .into_iter()
+            .chain([pbr.metallic_roughness_texture()])
+            .flatten()
+            .map(|info| info.texture())
+            .collect();
+        textures.extend(m.normal_texture().map(|n| n.texture()));
+        textures.extend(spec_gloss_diffuse_texture(&m).and_then(|i| document.textures().nth(i)));
+        let name = match m.name() {
+            Some(n) => format!("material '{n}'"),
+            None => format!("material {}", m.index().unwrap_or(0)),
+        };
+        for t in textures {
+            let list = users.entry(t.source().index()).or_default();
+            if !list.contains(&name) {
+                list.push(name.clone());
+            }
+        }
+    }
+    users
+        .into_iter()
+        .map(|(image, names)| (image, names.join(", ")))
+        .collect()
+}
+
+/// "image 2 ('wood.png')": an image and where it comes from, for warnings.
+fn image_label(image: &gltf::Image) -> String {
+    let origin = match (image.source(), image.name()) {
+        (gltf::image::Source::Uri { uri, .. }, _) if !uri.starts_with("data:") => {
+            format!(" ('{uri}')")
+        }
+        (_, Some(name)) => format!(" ('{name}')"),
+        _ => String::new(),
+    };
+    format!("image {}{origin}", image.index())
+}
+
+/// The KTX2 file identifier (`KHR_texture_basisu` images).
+const KTX2_MAGIC: &[u8] = b"\xABKTX 20\xBB";
+
+/// Reads and decodes one image (a file, a data URI or a buffer view; PNG, JPEG or WebP).
+fn decode_image(
+    image: &gltf::Image,
+    base: &Path,
+    buffers: &[gltf::buffer::Data],
+) -> std::result::Result<image::DynamicImage, String> {
+    let bytes: Vec<u8> = match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            // `check_ranges` has checked that the view lies inside its buffer.
+            let data = &buffers[view.buffer().index()].0;
+            data[view.offset()..view.offset() + view.length()].to_vec()
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            // The buffer reader resolves data URIs, percent-escapes and relative paths alike.
+            gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), Some(base))
+                .map_err(|e| match e {
+                    gltf::Error::Io(e) => format!("cannot read it: {e}"),
+                    other => format!("cannot read it: {other}"),
+                })?
+                .0
+        }
+    };
+    if bytes.starts_with(KTX2_MAGIC) {
+        return Err("KTX2 (KHR_texture_basisu) images are not supported".to_string());
+    }
+    image::load_from_memory(&bytes).map_err(|e| format!("cannot decode it: {e}"))
+}
+
+/// A decoded image as a texture of the given encoding.
+fn texture_of(image: &image::DynamicImage, encoding: Encoding) -> Option<Texture> {
+    use image::DynamicImage as D;
+    let (w, h) = (image.width(), image.height());
+    match image {
+        D::ImageLuma8(_) | D::ImageLumaA8(_) | D::ImageRgb8(_) | D::ImageRgba8(_) => {
+            let channels = image.color().channel_count() as usize;
+            Texture::from_bytes8(w, h, channels, image.as_bytes(), encoding)
+        }
+        D::ImageRgb32F(_) | D::ImageRgba32F(_) => {
+            let floats = image.to_rgb32f();
+            Texture::new(
+                w,
+                h,
+                floats
+                    .pixels()
+                    .map(|p| Rgb::new(p[0], p[1], p[2]))
+                    .collect(),
+            )
+        }
+        _ => {
+            let wide = image.to_rgba16();
+            let bytes: Vec<u8> = wide.as_raw().iter().flat_map(|v| v.to_le_bytes()).collect();
+            Texture::from_bytes16(w, h, 4, &bytes, encoding)
+        }
+    }
+}
+
 /// Decodes the images the materials use (sRGB colour to linear where the use is colour),
-/// with their samplers.
+/// with their samplers. An image that cannot be read or decoded is left out with one warning
+/// naming it and the materials that render without it.
 fn import_textures(
     document: &gltf::Document,
     base: &Path,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<TextureTable> {
+    warnings: &mut Vec<String>,
+) -> TextureTable {
     let mut out = TextureTable::new();
-    let mut images: HashMap<usize, gltf::image::Data> = HashMap::new();
+    let mut images: HashMap<usize, Option<image::DynamicImage>> = HashMap::new();
+    let users = image_users(document);
     let textures: Vec<gltf::Texture> = document.textures().collect();
     for (index, encoding) in texture_uses(document) {
         let texture = &textures[index];
         let image = texture.source();
-        if let std::collections::hash_map::Entry::Vacant(e) = images.entry(image.index()) {
-            let data = gltf::image::Data::from_source(image.source(), Some(base), buffers)
-                .map_err(|e| {
-                    Error::input(
-                        path,
-                        Some(format!("image {}", image.index())),
-                        format!("cannot decode: {e}"),
-                    )
-                })?;
-            e.insert(data);
-        }
-        let data = &images[&image.index()];
-        use gltf::image::Format as F;
-        let (w, h) = (data.width, data.height);
-        let (e, px) = (encoding, &data.pixels);
-        let decoded = match data.format {
-            F::R8 => Texture::from_bytes8(w, h, 1, px, e),
-            F::R8G8 => Texture::from_bytes8(w, h, 2, px, e),
-            F::R8G8B8 => Texture::from_bytes8(w, h, 3, px, e),
-            F::R8G8B8A8 => Texture::from_bytes8(w, h, 4, px, e),
-            F::R16 => Texture::from_bytes16(w, h, 1, px, e),
-            F::R16G16 => Texture::from_bytes16(w, h, 2, px, e),
-            F::R16G16B16 => Texture::from_bytes16(w, h, 3, px, e),
-            F::R16G16B16A16 => Texture::from_bytes16(w, h, 4, px, e),
-            F::R32G32B32FLOAT | F::R32G32B32A32FLOAT => {
-                let channels = if data.format == F::R32G32B32FLOAT {
-                    3
+        let decoded = images.entry(image.index()).or_insert_with(|| {
+            let result = decode_image(&image, base, buffers).and_then(|d| {
+                if d.width() == 0 || d.height() == 0 {
+                    Err("the decoded image has no texels".to_string())
                 } else {
-                    4
-                };
-                let floats: Vec<f32> = data
-                    .pixels
-                    .chunks_exact(4)
-                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-                    .collect();
-                Texture::new(
-                    w,
-                    h,
-                    floats
-                        .chunks_exact(channels)
-                        .map(|t| Rgb::new(t[0], t[1], t[2]))
-                        .collect(),
-                )
-            }
+                    Ok(d)
+                }
+            });
+            result
+                .map_err(|why| {
+                    warnings.push(format!(
+                        "{}: {}: {why}; {} render{} without it",
+                        path.display(),
+                        image_label(&image),
+                        users.get(&image.index()).map_or("", String::as_str),
+                        if users.get(&image.index()).is_some_and(|u| u.contains(", ")) {
+                            ""
+                        } else {
+                            "s"
+                        }
+                    ))
+                })
+                .ok()
+        });
+        let Some(decoded) = decoded.as_ref() else {
+            continue;
         };
-        let mut decoded = decoded.ok_or_else(|| {
-            Error::input(
-                path,
-                Some(format!("image {}", image.index())),
-                "the decoded image has no texels or an inconsistent size",
-            )
-        })?;
+        let Some(mut decoded) = texture_of(decoded, encoding) else {
+            warnings.push(format!(
+                "{}: {}: the decoded image has an inconsistent size; ignored",
+                path.display(),
+                image_label(&image)
+            ));
+            continue;
+        };
         let sampler = texture.sampler();
         let wrap = |w: gltf::texture::WrappingMode| match w {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -389,7 +509,7 @@ fn import_textures(
         };
         out.insert((index, encoding), Arc::new(decoded));
     }
-    Ok(out)
+    out
 }
 
 /// A texture reference's slot and UV set (`KHR_texture_transform` may override the set).
@@ -466,10 +586,39 @@ fn import_material(
         }
     };
     let specular = m.specular();
+    let spec_gloss = m.extension_value("KHR_materials_pbrSpecularGlossiness");
+    let (base, metallic, roughness) = match spec_gloss {
+        Some(sg) => {
+            let factor = |key: &str, default: f32, i: usize| {
+                sg[key][i].as_f64().map_or(default, |x| x as f32)
+            };
+            let diffuse = Rgb::new(
+                factor("diffuseFactor", 1.0, 0),
+                factor("diffuseFactor", 1.0, 1),
+                factor("diffuseFactor", 1.0, 2),
+            );
+            let specular = Rgb::new(
+                factor("specularFactor", 1.0, 0),
+                factor("specularFactor", 1.0, 1),
+                factor("specularFactor", 1.0, 2),
+            );
+            let glossiness = sg["glossinessFactor"].as_f64().map_or(1.0, |x| x as f32);
+            let (base, metallic) = metallic_from_specular(
+                diffuse.clamp(Rgb::ZERO, Rgb::ONE),
+                specular.clamp(Rgb::ZERO, Rgb::ONE),
+            );
+            (base, metallic, 1.0 - unit(glossiness))
+        }
+        None => (
+            base,
+            unit(pbr.metallic_factor()),
+            unit(pbr.roughness_factor()),
+        ),
+    };
     let material = Material::MetallicRoughness {
         base_color: base,
-        metallic: unit(pbr.metallic_factor()),
-        roughness: unit(pbr.roughness_factor()),
+        metallic,
+        roughness,
         specular: specular.as_ref().map_or(1.0, |s| unit(s.specular_factor())),
         specular_color: specular
             .as_ref()
@@ -491,9 +640,27 @@ fn import_material(
     // Textures: one set of texture coordinates per mesh, so all of a material's textures
     // must read the same `TEXCOORD_n`.
     let normal = m.normal_texture();
+    let (base_color_slot, metallic_roughness_slot) = match spec_gloss {
+        // The diffuse texture stands for the base colour; the specular-glossiness texture
+        // has no metallic-roughness equivalent texel by texel (warned once per file).
+        Some(sg) => (
+            spec_gloss_diffuse_texture(m).and_then(|index| {
+                let tex_coord = sg["diffuseTexture"]["texCoord"].as_u64().unwrap_or(0) as u32;
+                let transform = sg["diffuseTexture"]["extensions"]
+                    .get("KHR_texture_transform")
+                    .map(raw_uv_transform);
+                texture_slot(textures, index, Encoding::Srgb, tex_coord, transform)
+            }),
+            None,
+        ),
+        None => (
+            info_slot(textures, pbr.base_color_texture(), Encoding::Srgb),
+            info_slot(textures, pbr.metallic_roughness_texture(), Encoding::Linear),
+        ),
+    };
     let slots = [
-        info_slot(textures, pbr.base_color_texture(), Encoding::Srgb),
-        info_slot(textures, pbr.metallic_roughness_texture(), Encoding::Linear),
+        base_color_slot,
+        metallic_roughness_slot,
         normal.as_ref().and_then(|n| {
             texture_slot(
                 textures,
@@ -533,6 +700,48 @@ fn import_material(
     }
 }
 
+/// The texture index of a `KHR_materials_pbrSpecularGlossiness` diffuse texture.
+fn spec_gloss_diffuse_texture(m: &gltf::Material) -> Option<usize> {
+    let sg = m.extension_value("KHR_materials_pbrSpecularGlossiness")?;
+    sg["diffuseTexture"]["index"].as_u64().map(|i| i as usize)
+}
+
+/// Perceived brightness of a colour (the weights of the conversion's reference).
+fn perceived_brightness(c: Rgb) -> f32 {
+    (0.299 * c.x * c.x + 0.587 * c.y * c.y + 0.114 * c.z * c.z).sqrt()
+}
+
+/// Base colour and metallic from specular-glossiness diffuse and specular colours: the
+/// conversion of the Khronos glTF sample viewer and Babylon.js (documented in
+/// docs/importing-notes.md). Metallic solves, in perceived brightness, diffuse
+/// `(1 - max(specular)) / (1 - F0) * (1 - metallic)` and specular `F0 (1 - m) + base m` for the
+/// same base; the base colour blends the colours that each equation gives by metallic squared.
+/// Exact for pure dielectrics (specular 0.04) and pure metals (black diffuse).
+fn metallic_from_specular(diffuse: Rgb, specular: Rgb) -> (Rgb, f32) {
+    const EPSILON: f32 = 1e-6;
+    let one_minus_specular = 1.0 - specular.max_element();
+    let (d, s) = (
+        perceived_brightness(diffuse),
+        perceived_brightness(specular),
+    );
+    let metallic = if s < DIELECTRIC_F0 {
+        0.0
+    } else {
+        let a = DIELECTRIC_F0;
+        let b = d * one_minus_specular / (1.0 - a) + s - 2.0 * a;
+        let c = a - s;
+        let discriminant = (b * b - 4.0 * a * c).max(0.0);
+        ((-b + discriminant.sqrt()) / (2.0 * a)).clamp(0.0, 1.0)
+    };
+    let from_diffuse =
+        diffuse * (one_minus_specular / (1.0 - DIELECTRIC_F0) / (1.0 - metallic).max(EPSILON));
+    let from_specular =
+        (specular - Rgb::splat(DIELECTRIC_F0 * (1.0 - metallic))) * (1.0 / metallic.max(EPSILON));
+    let t = metallic * metallic;
+    let base = from_diffuse * (1.0 - t) + from_specular * t;
+    (base.clamp(Rgb::ZERO, Rgb::ONE), metallic)
+}
+
 /// Reads one primitive's triangles into a [`Mesh`] in node space.
 fn read_primitive(
     primitive: &gltf::Primitive,
@@ -540,21 +749,17 @@ fn read_primitive(
     material: &ImportedMaterial,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<(Mesh, Option<VertexTangents>)> {
+) -> Result<Option<(Mesh, Option<VertexTangents>)>> {
     let mesh_name = match mesh.name() {
         Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
         None => format!("mesh {}", mesh.index()),
     };
     let at = || Some(format!("{mesh_name}, primitive {}", primitive.index()));
-    if primitive.mode() != Mode::Triangles {
-        return Err(Error::input(
-            path,
-            at(),
-            format!(
-                "primitive mode {:?} is not supported (only triangles are)",
-                primitive.mode()
-            ),
-        ));
+    if matches!(
+        primitive.mode(),
+        Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+    ) {
+        return Ok(None);
     }
     // gltf 1.4.1's readers panic (`unreachable!`) on component types the specification
     // forbids, and its validation does not catch them (found by fuzzing): check them here.
@@ -653,6 +858,11 @@ fn read_primitive(
             ));
         }
     };
+    let flat = match primitive.mode() {
+        Mode::TriangleStrip => strip_to_list(&flat),
+        Mode::TriangleFan => fan_to_list(&flat),
+        _ => flat,
+    };
     if !flat.len().is_multiple_of(3) {
         return Err(Error::input(
             path,
@@ -678,5 +888,20 @@ fn read_primitive(
     let tangents =
         (tangents.len() == n && mesh.normals.len() == n && tangents.iter().all(|t| t.is_finite()))
             .then_some(VertexTangents(tangents));
-    Ok((mesh, tangents))
+    Ok(Some((mesh, tangents)))
+}
+
+/// A triangle strip's triangles as a list, each with the strip's alternating winding
+/// turned into one orientation (glTF 2.0, 3.7.2.1: triangle i is (i, i+1+i%2, i+2-i%2)).
+fn strip_to_list(strip: &[u32]) -> Vec<u32> {
+    (0..strip.len().saturating_sub(2))
+        .flat_map(|i| [strip[i], strip[i + 1 + i % 2], strip[i + 2 - i % 2]])
+        .collect()
+}
+
+/// A triangle fan's triangles as a list: (0, i+1, i+2), the winding of glTF's (i+1, i+2, 0).
+fn fan_to_list(fan: &[u32]) -> Vec<u32> {
+    (0..fan.len().saturating_sub(2))
+        .flat_map(|i| [fan[0], fan[i + 1], fan[i + 2]])
+        .collect()
 }

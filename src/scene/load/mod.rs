@@ -8,16 +8,21 @@
 
 mod gltf;
 mod gltf_check;
+mod gltf_fix;
 mod obj;
 mod obj_check;
 mod place;
 mod scene_file;
 
-pub use place::{ROOM_FREE_FLOOR_CENTRE, bounding_box, has_lights, place_in_room};
+pub use place::{
+    DARK_IMAGE_HINT, ROOM_EYE, ROOM_FLOOR, ROOM_PROPS, ROOM_STAGE_FRONT, ROOM_STAGE_TOP,
+    ROOM_VIEW_FILL, bounding_box, dark_image_warning, has_lights, lights_itself, place_in_room,
+    room_stage_transform,
+};
 
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat3A, Vec3A};
-use crate::scene::Mesh;
+use crate::scene::{Mesh, PunctualLight};
 use std::path::Path;
 
 /// A loaded scene: the entities, and the render settings the file asks for (the CLI's flags
@@ -55,6 +60,42 @@ impl UpAxis {
     }
 }
 
+/// How glTF `KHR_lights_punctual` intensities are read (OBJ files have no such lights).
+///
+/// The renderer's lights are radiometric: a point or spot light's intensity is W/sr, a
+/// directional light's irradiance W/m^2. The glTF specification's units are photometric.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LightUnits {
+    /// The specification's units, as Blender's exporter writes them in its default
+    /// ("Standard") lighting mode: point and spot intensities in candela, directional in lux,
+    /// turned into W/sr and W/m^2 with 683 lm/W ([`LUMENS_PER_WATT`]).
+    #[default]
+    Spec,
+    /// The numbers read as radiometric as they are: candela as W/sr, lux as W/m^2 (Blender's
+    /// "Unitless" export mode).
+    Unitless,
+    /// Blender's "Raw" export mode: a point or spot intensity is the lamp's power in watts
+    /// (W/sr = W / 4 pi), a directional one its strength in W/m^2.
+    Raw,
+}
+
+/// The luminous efficacy that turns photometric into radiometric units (lm/W): the
+/// definition of the candela, and what Blender's exporter multiplies its watts by.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+impl LightUnits {
+    /// The factor from the file's number to the renderer's unit, for a point or spot light
+    /// (`directional: false`, to W/sr) or a directional light (to W/m^2).
+    pub fn factor(self, directional: bool) -> f32 {
+        match (self, directional) {
+            (LightUnits::Spec, _) => 1.0 / LUMENS_PER_WATT,
+            (LightUnits::Unitless, _) | (LightUnits::Raw, true) => 1.0,
+            (LightUnits::Raw, false) => 1.0 / (4.0 * std::f32::consts::PI),
+        }
+    }
+}
+
 /// How [`load_scene_with`] treats imported model files.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LoadOptions {
@@ -62,6 +103,21 @@ pub struct LoadOptions {
     pub in_room: bool,
     /// Name of the camera to render from; `None` takes the file's first camera.
     pub camera: Option<String>,
+    /// The model file's up axis (`--up`).
+    pub up: UpAxis,
+    /// How the model file's light intensities are read (`--light-units`).
+    pub light_units: LightUnits,
+}
+
+/// What [`load_scene_placed`] did with the file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Placement {
+    /// A scene file, loaded as written.
+    SceneFile,
+    /// A model file that lights itself, rendered as it is.
+    AsIs,
+    /// A model file placed in the seed room.
+    InRoom,
 }
 
 /// Render settings a scene file may state; `None` leaves the choice to the caller.
@@ -96,24 +152,31 @@ pub const BUILTIN_ROOM: &str = include_str!("../../../scenes/room.toml");
 /// Loads a scene file with the default [`LoadOptions`]; the loader is chosen by the
 /// extension (`.toml`, `.gltf`, `.glb`, `.obj`).
 ///
-/// A model file (glTF or OBJ) with no emitter and no light is a *bare model*: it is placed
-/// in the seed room ([`place_in_room`]) and seen from the room's camera. A file with lights
-/// renders as it is, from its first camera, or from a camera framing its bounding box when
-/// it has none.
+/// A model file (glTF or OBJ) renders as it is only if it lights itself ([`lights_itself`]):
+/// it has punctual lights, or it has emitters *and* a camera (a scene set up for rendering).
+/// Any other model is a *bare model* — its glow alone (a few emissive decals) would leave it
+/// black — and is placed in the seed room ([`place_in_room`]) and seen from the room's
+/// camera. A file rendered as it is uses its first camera, or a camera framing its bounding
+/// box when it has none.
 pub fn load_scene(path: &Path) -> Result<Scene> {
     load_scene_with(path, &LoadOptions::default())
 }
 
 /// [`load_scene`] with options.
 pub fn load_scene_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
-    let mut scene = if is_model_file(path) {
-        let model = import_model(path, UpAxis::Y)?;
-        if options.in_room || !has_lights(&model.world) {
-            place_in_room(model, path)?
+    load_scene_placed(path, options).map(|(scene, _)| scene)
+}
+
+/// [`load_scene_with`], also telling how the file was placed.
+pub fn load_scene_placed(path: &Path, options: &LoadOptions) -> Result<(Scene, Placement)> {
+    let (mut scene, placement) = if is_model_file(path) {
+        let model = import_model_with(path, options.up, options.light_units)?;
+        if options.in_room || !lights_itself(&model.world) {
+            (place_in_room(model, path)?, Placement::InRoom)
         } else {
             let mut model = model;
             place::ensure_camera(&mut model.world, path)?;
-            model
+            (model, Placement::AsIs)
         }
     } else {
         let ext = path
@@ -128,10 +191,10 @@ pub fn load_scene_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
             ));
         }
         let text = read_text(path)?;
-        scene_file::load(path, &text)?
+        (scene_file::load(path, &text)?, Placement::SceneFile)
     };
     place::select_camera(&mut scene.world, options.camera.as_deref(), path)?;
-    Ok(scene)
+    Ok((scene, placement))
 }
 
 /// Whether the extension names a model format ([`import_model`] reads it).
@@ -144,8 +207,28 @@ pub fn is_model_file(path: &Path) -> bool {
 }
 
 /// Imports a glTF or OBJ file as it is: its entities (cameras and lights included) in world
-/// space, the file's `up` axis turned to +Z. No room, no camera added.
+/// space, the file's `up` axis turned to +Z, light intensities read in the specification's
+/// units ([`LightUnits::Spec`]). No room, no camera added.
 pub fn import_model(path: &Path, up: UpAxis) -> Result<Scene> {
+    import_model_with(path, up, LightUnits::default())
+}
+
+/// [`import_model`] with the light intensities read as `units` say.
+pub fn import_model_with(path: &Path, up: UpAxis, units: LightUnits) -> Result<Scene> {
+    let mut scene = import_file(path, up)?;
+    for light in scene.world.query_mut::<&mut PunctualLight>() {
+        match light {
+            PunctualLight::Point { intensity } | PunctualLight::Spot { intensity, .. } => {
+                *intensity *= units.factor(false)
+            }
+            PunctualLight::Directional { irradiance } => *irradiance *= units.factor(true),
+        }
+    }
+    Ok(scene)
+}
+
+/// The loader chosen by the extension; lights in the file's own numbers.
+fn import_file(path: &Path, up: UpAxis) -> Result<Scene> {
     if !path.is_file() {
         return Err(Error::input(path, None, "no such file"));
     }

@@ -5,7 +5,9 @@
 //! come out right (tobj's own triangulation is a fan, correct only for convex faces). The MTL
 //! mapping is documented in the README: `Kd`/`map_Kd`, `Ks`, `Ns`/`Pr`, `Pm`, `Ni` -> glTF
 //! metallic-roughness, `Ke` -> one-sided emitter, `illum 3` or a mirror-like `Ks` with high
-//! `Ns` -> mirror, `illum 4/6/7` or `d`/`Tr` transparency -> glass of index `Ni`.
+//! `Ns` -> mirror, `d` below 1 -> glass of index `Ni` (`Tr` is ignored, as Blender does). A
+//! polygon that cannot be cut into ears (twisted, non-planar) is triangulated as a fan, with a
+//! warning; bad faces are skipped with one warning.
 
 use super::{Scene, SceneDefaults, UpAxis, check_mesh, obj_check};
 use crate::error::{Error, Result};
@@ -27,7 +29,9 @@ const MIRROR_MIN_NS: f32 = 900.0;
 
 /// Loads an OBJ file (and its MTL libraries) into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
-    let text = super::read_text(path)?;
+    let raw = super::read_text(path)?;
+    let mut warnings = Vec::new();
+    let text = obj_check::preprocess(path, &raw, &mut warnings);
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let options = tobj::LoadOptions {
         triangulate: false,
@@ -54,7 +58,6 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             format!("cannot parse OBJ: {e}"),
         ),
     })?;
-    let mut warnings = Vec::new();
     let materials = match materials {
         Ok(m) => m,
         Err(e) => {
@@ -84,6 +87,11 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let mut world = hecs::World::new();
     let transform = Transform(up.world_from_file());
     let mut face_counter = 0usize;
+    // Faces triangulated as fans because ear clipping failed, and faces skipped: counted for
+    // one warning each, with the first line.
+    let (mut fanned, mut first_fanned) = (0usize, None);
+    let (mut skipped, mut first_skipped) = (0usize, None);
+    let mut unknown_material_warned = false;
     for model in &models {
         let m = &model.mesh;
         let name = if model.name.is_empty() {
@@ -121,19 +129,25 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             let line = face_lines.get(face_counter).map(|&l| l as usize);
             face_counter += 1;
             if let Some(&bad) = polygon.iter().find(|&&i| i as usize >= n) {
-                return Err(face_error(
-                    path,
-                    line,
-                    format!("vertex index {bad} out of range"),
-                ));
+                skipped += 1;
+                first_skipped.get_or_insert((line, format!("vertex index {bad} out of range")));
+                continue;
             }
-            triangulate_polygon(&positions, polygon, &mut indices)
-                .map_err(|msg| face_error(path, line, msg))?;
+            if let Err(why) = triangulate_polygon(&positions, polygon, &mut indices) {
+                // A twisted or strongly non-planar polygon: a fan from its first vertex covers
+                // it (exactly so for a convex one), though maybe not as its author meant.
+                fanned += 1;
+                first_fanned.get_or_insert((line, why));
+                for k in 1..polygon.len() - 1 {
+                    indices.push([polygon[0], polygon[k], polygon[k + 1]]);
+                }
+            }
         }
         let (material, emitter, texture) = match m.material_id {
             Some(id) if id < imported.len() => imported[id].clone(),
             Some(_) | None => {
-                if !materials.is_empty() {
+                if !materials.is_empty() && !unknown_material_warned {
+                    unknown_material_warned = true;
                     warnings.push(format!(
                         "{}: object '{name}' has no known material; using a default grey",
                         path.display()
@@ -174,11 +188,40 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 .expect("just spawned");
         }
     }
+    let at = |line: Option<usize>| line.map_or(String::new(), |l| format!(", line {l}"));
+    if let Some((line, why)) = first_fanned {
+        warnings.push(format!(
+            "{}: {fanned} polygon{} could not be cut into ears and {} triangulated as a fan,              which may be wrong (first{}: {why})",
+            path.display(),
+            plural(fanned),
+            if fanned == 1 { "was" } else { "were" },
+            at(line)
+        ));
+    }
+    if let Some((line, why)) = first_skipped {
+        warnings.push(format!(
+            "{}: {skipped} face{} skipped (first{}: {why})",
+            path.display(),
+            plural(skipped),
+            at(line)
+        ));
+    }
+    if world.query::<&Mesh>().iter().all(|m| m.indices.is_empty()) && skipped > 0 {
+        return Err(Error::input(
+            path,
+            None,
+            "nothing renderable is left: every face was skipped",
+        ));
+    }
     Ok(Scene {
         world,
         defaults: SceneDefaults::default(),
         warnings,
     })
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
 }
 
 /// The line at which tobj's parse first fails (tobj reports no position): the shortest
@@ -217,14 +260,6 @@ fn load_mtl_checked(path: &Path) -> tobj::MTLLoadResult {
     tobj::load_mtl_buf(&mut text.as_bytes())
 }
 
-fn face_error(path: &Path, line: Option<usize>, message: String) -> Error {
-    Error::input(
-        path,
-        line.map(|l| format!("line {l}")),
-        format!("face: {message}"),
-    )
-}
-
 /// The README's MTL mapping.
 fn import_material(
     m: &tobj::Material,
@@ -239,15 +274,30 @@ fn import_material(
     let illum = m
         .illumination_model
         .unwrap_or(if ks == Rgb::ZERO { 1 } else { 2 });
-    let tr = m
+    // Blender's rules: `d` (dissolve) alone says how see-through a surface is; `Tr` is
+    // ignored, since exporters disagree on it (MeshLab writes `Tr 1` for opaque surfaces,
+    // others `Tr 1` for invisible ones); `illum` does not make a surface transparent.
+    let dissolve = m.dissolve.filter(|d| d.is_finite()).unwrap_or(1.0);
+    if let Some(tr) = m
         .unknown_param
         .get("Tr")
-        .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok());
-    let transparency = match (m.dissolve, tr) {
-        (Some(d), _) => 1.0 - d,
-        (None, Some(tr)) => tr,
-        (None, None) => 0.0,
-    };
+        .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+        .filter(|&tr| tr > 0.0 && tr < 1.0 && m.dissolve.is_none())
+    {
+        warnings.push(format!(
+            "material '{}': Tr {tr} is ignored (exporters disagree on whether Tr is \
+             transparency or opacity; write d for see-through surfaces)",
+            m.name
+        ));
+    }
+    let transparent = dissolve < 1.0;
+    if transparent && !matches!(illum, 4 | 6 | 7 | 9) {
+        warnings.push(format!(
+            "material '{}': d {dissolve} (a partly see-through surface) is approximated by \
+             clear glass",
+            m.name
+        ));
+    }
     let clamped = |c: Rgb, what: &str, warnings: &mut Vec<String>| {
         if c.min_element() < 0.0 || c.max_element() > 1.0 {
             warnings.push(format!(
@@ -257,7 +307,7 @@ fn import_material(
         }
         c.clamp(Rgb::ZERO, Rgb::ONE)
     };
-    let material = if matches!(illum, 4 | 6 | 7) || transparency > 0.0 {
+    let material = if transparent {
         Material::Dielectric {
             ior: m.optical_density.filter(|&n| n > 0.0).unwrap_or(1.5),
             fresnel: FresnelModel::Exact,
@@ -304,8 +354,14 @@ fn import_material(
             two_sided: false,
         });
     let texture = m.diffuse_texture.as_ref().and_then(|file| {
-        // map_Kd options (-s, -o, ...) are not supported: the last word is the file.
-        let file = file.split_whitespace().last().unwrap_or(file);
+        let (file, options) = texture_file_name(file);
+        if !options.is_empty() {
+            warnings.push(format!(
+                "material '{}': map_Kd options {} are ignored",
+                m.name,
+                options.join(" ")
+            ));
+        }
         let full = dir.join(file);
         cache
             .entry(full.clone())
@@ -323,6 +379,46 @@ fn import_material(
             .clone()
     });
     (material, emitter, texture)
+}
+
+/// The file name of a texture statement's arguments (`-o 0 0 0 fuze uv.jpg` -> `fuze uv.jpg`:
+/// names may hold spaces) and the options before it, which are not supported.
+fn texture_file_name(arguments: &str) -> (&str, Vec<&str>) {
+    // MTL texture options and how many values each takes.
+    const OPTIONS: &[(&str, usize)] = &[
+        ("-blendu", 1),
+        ("-blendv", 1),
+        ("-bm", 1),
+        ("-boost", 1),
+        ("-cc", 1),
+        ("-clamp", 1),
+        ("-imfchan", 1),
+        ("-mm", 2),
+        ("-o", 3),
+        ("-s", 3),
+        ("-t", 3),
+        ("-texres", 1),
+        ("-type", 1),
+    ];
+    let mut rest = arguments.trim();
+    let mut options = Vec::new();
+    while let Some((flag, count)) = OPTIONS.iter().find(|(flag, _)| {
+        rest.strip_prefix(flag)
+            .is_some_and(|r| r.starts_with(char::is_whitespace))
+    }) {
+        options.push(*flag);
+        rest = rest[flag.len()..].trim_start();
+        // -o, -s and -t take one to three numbers: only the numbers are values.
+        for _ in 0..*count {
+            let word_end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+            let word = &rest[..word_end];
+            if *count == 3 && word.parse::<f32>().is_err() {
+                break;
+            }
+            rest = rest[word_end..].trim_start();
+        }
+    }
+    (rest, options)
 }
 
 /// Reads an image file as an sRGB colour texture (repeat, bilinear).

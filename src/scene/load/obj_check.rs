@@ -5,6 +5,81 @@
 //! huge `usize` and multiplies it, which overflows (a panic in debug builds, wrong data in
 //! release; found by fuzzing). Checking here also lets every message name the line and value.
 
+/// The OBJ text as tobj should read it, with the same line numbers: a line ending in `\\`
+/// continues on the next (joined here, the next left empty); lines (`l`), points (`p`) and faces
+/// of fewer than three vertices are blanked, since tobj would drop them silently or make a
+/// triangle of `l 1 2 3`. Each kind of dropped element gets one warning; so does `usemtl` in a
+/// file that loads no material library.
+pub(super) fn preprocess(path: &std::path::Path, text: &str, warnings: &mut Vec<String>) -> String {
+    let lines: Vec<&str> = text.lines().collect();
+    let mut out: Vec<String> = Vec::with_capacity(lines.len());
+    // (count, first line) of each dropped kind.
+    let mut dropped = [(0usize, 0usize); 3];
+    let (mut usemtl, mut mtllib) = (None, false);
+    let mut i = 0;
+    while i < lines.len() {
+        let first = i;
+        let mut logical = lines[i].to_string();
+        while logical.trim_end().ends_with('\\') && i + 1 < lines.len() {
+            let kept = logical.trim_end();
+            logical = format!("{} {}", &kept[..kept.len() - 1], lines[i + 1]);
+            i += 1;
+        }
+        if logical.trim_end().ends_with('\\') {
+            let kept = logical.trim_end();
+            logical = kept[..kept.len() - 1].to_string();
+        }
+        let mut words = logical.split_whitespace();
+        let kind = match words.next() {
+            Some("l") => Some(0),
+            Some("p") => Some(1),
+            Some("f") if matches!(words.clone().count(), 1 | 2) => Some(2),
+            Some("mtllib") => {
+                mtllib = true;
+                None
+            }
+            Some("usemtl") => {
+                usemtl.get_or_insert(first + 1);
+                None
+            }
+            _ => None,
+        };
+        if let Some(k) = kind {
+            dropped[k].0 += 1;
+            if dropped[k].1 == 0 {
+                dropped[k].1 = first + 1;
+            }
+            logical.clear();
+        }
+        out.push(logical);
+        out.extend(std::iter::repeat_n(String::new(), i - first));
+        i += 1;
+    }
+    let file = path.display();
+    let what = [
+        "line elements (l) are not rendered",
+        "point elements (p) are not rendered",
+        "faces with fewer than 3 vertices are skipped",
+    ];
+    for (k, (count, line)) in dropped.into_iter().enumerate() {
+        if count > 0 {
+            warnings.push(format!(
+                "{file}: {} ({count}, first at line {line})",
+                what[k]
+            ));
+        }
+    }
+    if let (Some(line), false) = (usemtl, mtllib) {
+        warnings.push(format!(
+            "{file}: line {line}: usemtl names a material but the file loads no material \
+             library (mtllib); using a default grey"
+        ));
+    }
+    let mut joined = out.join("\n");
+    joined.push('\n');
+    joined
+}
+
 /// The 1-based line of every polygon tobj returns, in file order, or the first bad face index
 /// as (line, message). tobj reads `f` and `l` lines alike and, with points and lines ignored,
 /// returns those with no index or with three or more (so `l 1 2 3` is a triangle).
@@ -177,6 +252,34 @@ pub(super) fn non_finite_vertex(text: &str) -> Option<(usize, String)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn continuations_lines_and_short_faces_are_preprocessed_with_one_warning_each() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 \\\n 3\nl 1 2 3\nl 2 3\n\
+                    f 1 2\nusemtl x\nf 2 4 3\n";
+        let mut warnings = Vec::new();
+        let out = preprocess(std::path::Path::new("m.obj"), text, &mut warnings);
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), text.lines().count(), "line numbers are kept");
+        assert_eq!(
+            lines[4].split_whitespace().collect::<Vec<_>>(),
+            ["f", "1", "2", "3"]
+        );
+        assert_eq!(lines[5], "");
+        assert_eq!(lines[6], "");
+        assert_eq!(lines[8], "");
+        assert_eq!(lines[10], "f 2 4 3");
+        assert_eq!(
+            warnings,
+            [
+                "m.obj: line elements (l) are not rendered (2, first at line 7)",
+                "m.obj: faces with fewer than 3 vertices are skipped (1, first at line 9)",
+                "m.obj: line 10: usemtl names a material but the file loads no material library \
+                 (mtllib); using a default grey",
+            ]
+        );
+        assert_eq!(face_lines(&out).unwrap(), vec![5, 11]);
+    }
 
     #[test]
     fn faces_are_listed_with_their_lines() {

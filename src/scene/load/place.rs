@@ -1,22 +1,51 @@
-//! Placing imported models: the bare-model rule (a model without lights goes into the seed
-//! room), `[[model]]` placement, a framing camera for files without one, and the choice of
-//! camera. These read and edit the authoring world; rendering never comes here.
+//! Placing imported models: the bare-model rule (a model that does not light itself goes
+//! into the seed room, as its subject, on the room's stage), `[[model]]` placement, a
+//! framing camera for files without one, the choice of camera, and the dark-image check of
+//! files rendered as they are. These read and edit the authoring world (and, for the check,
+//! the finished image); rendering never comes here.
 
 use super::{BUILTIN_ROOM, Scene, scene_file};
 use crate::error::{Error, Result};
-use crate::math::{Affine3A, Vec3};
+use crate::film::Image;
+use crate::math::{Affine3A, Vec3, luminance};
 use crate::scene::{
     Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
 };
 use std::path::Path;
 
-/// Where a bare model's bottom centre lands in the seed room: the floor point (z = -5) whose
-/// 3 x 3 footprint, with the whole 3-unit box in the room camera's view, keeps the largest
-/// clearance from the walls and from the tetrahedron and the two spheres (a 0.1-unit grid
-/// search over the hexagon; the clearance there is 0.4 units on every side).
-pub const ROOM_FREE_FLOOR_CENTRE: Vec3 = Vec3::new(10.4, -0.9, -5.0);
-/// A bare model is scaled so that its largest extent is this (world units).
-pub const ROOM_MODEL_SIZE: f32 = 3.0;
+/// The room camera's eye; it looks along +x with a 90 degree (square) view, so a point
+/// (x, y, z) is in view when |y| and |z| are at most x + 1. [`tests`] checks these against
+/// the room file.
+pub const ROOM_EYE: Vec3 = Vec3::new(-1.0, 0.0, 0.0);
+/// The room's floor height.
+pub const ROOM_FLOOR: f32 = -5.0;
+/// A placed model's top stays at or below this height, 3 units under the ceiling light, so
+/// that the light reaches its top and front.
+pub const ROOM_STAGE_TOP: f32 = 2.0;
+/// The placed model keeps inside this fraction of the room camera's half view (a margin of
+/// 3% of the image on each side).
+pub const ROOM_VIEW_FILL: f32 = 0.94;
+/// The placed model keeps this far from the room's walls.
+pub const ROOM_WALL_CLEARANCE: f32 = 0.3;
+/// The room's props: a placed model's bounding box that overlaps one's takes it out of the
+/// room (the model would stand inside it; the model hides it from the camera anyway).
+pub const ROOM_PROPS: [&str; 3] = ["tetrahedron", "glass sphere", "mirror sphere"];
+/// The nearest a placed model's front can be: where the room camera first sees the floor,
+/// with the view margin (x = 5 / 0.94 - 1).
+pub const ROOM_STAGE_FRONT: f32 = -ROOM_FLOOR / ROOM_VIEW_FILL + ROOM_EYE.x;
+/// A model whose depth (front to back) is more than this times its width is turned a
+/// quarter turn so that its long side faces the camera (a row of objects, a panel seen
+/// edge-on).
+pub const FLAT_TURN_RATIO: f32 = 2.0;
+
+/// Whether an imported model lights itself: it has punctual lights, or it has emitters and a
+/// camera (a scene set up for rendering). Emitters alone do not count: a model whose only
+/// light is its own glow (emissive decals, a lamp's bulb) would render black but for them.
+pub fn lights_itself(world: &hecs::World) -> bool {
+    let punctual = world.query::<&PunctualLight>().iter().next().is_some();
+    let has_camera = world.query::<&Camera>().iter().next().is_some();
+    punctual || (has_camera && has_lights(world))
+}
 
 /// Whether the world has anything that emits light (an emitter of non-zero radiance, or a
 /// punctual light).
@@ -28,27 +57,46 @@ pub fn has_lights(world: &hecs::World) -> bool {
     emitting || world.query::<&PunctualLight>().iter().next().is_some()
 }
 
-/// World-space bounding box (min, max) of every mesh and sphere, or `None` if there is none.
-pub fn bounding_box(world: &hecs::World) -> Option<(Vec3, Vec3)> {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+/// Every world-space point of the meshes (their vertices) and spheres (their boxes' corners).
+fn world_points(world: &hecs::World) -> Vec<Vec3> {
+    let mut points = Vec::new();
     for (mesh, transform) in world.query::<(&Mesh, Option<&Transform>)>().iter() {
         let t = transform.copied().unwrap_or_default().0;
+        // Only vertices that triangles use: an unused vertex is not seen.
+        let mut used = vec![false; mesh.positions.len()];
         for tri in &mesh.indices {
             for &i in tri {
-                let p = t.transform_point3(mesh.positions[i as usize]);
-                lo = lo.min(p);
-                hi = hi.max(p);
+                used[i as usize] = true;
             }
         }
+        points.extend(
+            mesh.positions
+                .iter()
+                .zip(&used)
+                .filter(|(_, u)| **u)
+                .map(|(p, _)| t.transform_point3(*p)),
+        );
     }
     for (sphere, transform) in world.query::<(&Sphere, Option<&Transform>)>().iter() {
         let t = transform.copied().unwrap_or_default().0;
         let c = t.transform_point3(Vec3::ZERO);
         let r = sphere.radius * t.matrix3.x_axis.length();
-        lo = lo.min(c - r);
-        hi = hi.max(c + r);
+        for corner in 0..8 {
+            let sign = |bit: u32| if corner & bit == 0 { -1.0 } else { 1.0 };
+            points.push(c + r * Vec3::new(sign(1), sign(2), sign(4)));
+        }
     }
+    points
+}
+
+/// World-space bounding box (min, max) of every mesh and sphere, or `None` if there is none.
+pub fn bounding_box(world: &hecs::World) -> Option<(Vec3, Vec3)> {
+    box_of(&world_points(world))
+}
+
+fn box_of(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
+    let lo = points.iter().fold(Vec3::INFINITY, |a, p| a.min(*p));
+    let hi = points.iter().fold(Vec3::NEG_INFINITY, |a, p| a.max(*p));
     (lo.x <= hi.x).then_some((lo, hi))
 }
 
@@ -61,6 +109,116 @@ pub(super) fn fit_transform(lo: Vec3, hi: Vec3, size: f32, anchor: Vec3) -> Affi
     Affine3A::from_translation(anchor)
         * Affine3A::from_scale(Vec3::splat(scale))
         * Affine3A::from_translation(-bottom_centre)
+}
+
+/// The room's stage: where a model given in world space (+Z up, its front facing -Y, as
+/// glTF's +Z front comes out of the axis conversion) stands in the seed room as its subject.
+///
+/// 1. It is turned about the vertical so that its front faces the room camera (-Y to -X),
+///    unless it is more than [`FLAT_TURN_RATIO`] times deeper than wide: then it keeps its
+///    orientation, its long side (its right, glTF -X) facing the camera.
+/// 2. It stands on the floor, centred across the view, and is scaled as large as it can be
+///    while every vertex stays in the room camera's view (within [`ROOM_VIEW_FILL`]), inside
+///    the room's walls (with [`ROOM_WALL_CLEARANCE`]) and below [`ROOM_STAGE_TOP`]; at that
+///    scale it comes as near the camera as the view allows.
+///
+/// Returns `None` for a world without geometry.
+pub fn room_stage_transform(world: &hecs::World) -> Option<Affine3A> {
+    let points = world_points(world);
+    let (lo, hi) = box_of(&points)?;
+    // A quarter turn about z, -Y to -X, exact (no rounding, which would give a degenerate
+    // triangle an area).
+    let front_to_camera = Affine3A::from_mat3(glam::Mat3::from_cols(Vec3::NEG_Y, Vec3::X, Vec3::Z));
+    let (depth, width) = ((hi - lo).y, (hi - lo).x);
+    let turn = if depth > FLAT_TURN_RATIO * width {
+        Affine3A::IDENTITY
+    } else {
+        front_to_camera
+    };
+    let oriented: Vec<Vec3> = points.iter().map(|p| turn.transform_point3(*p)).collect();
+    let (lo, hi) = box_of(&oriented)?;
+    let centre_y = (lo.y + hi.y) * 0.5;
+    // Offsets of every point from the box's front-bottom-centre, at unit scale.
+    let offsets: Vec<Vec3> = oriented
+        .iter()
+        .map(|p| Vec3::new(p.x - lo.x, p.y - centre_y, p.z - lo.z))
+        .collect();
+    let k = ROOM_VIEW_FILL;
+    // For scale s, the front x must be at least `nearest(s)` (every point in view) and at
+    // most `farthest(s)` (every point inside the walls: |y| <= 6, x <= 13 - |y| / 2).
+    let nearest = |s: f32| {
+        offsets.iter().fold(f32::NEG_INFINITY, |a, o| {
+            let (y, z) = (s * o.y, ROOM_FLOOR + s * o.z);
+            a.max(y.abs().max(z.abs()) / k + ROOM_EYE.x - s * o.x)
+        })
+    };
+    let farthest = |s: f32| {
+        offsets.iter().fold(f32::INFINITY, |a, o| {
+            a.min(13.0 - ROOM_WALL_CLEARANCE - 0.5 * (s * o.y).abs() - s * o.x)
+        })
+    };
+    let size = hi - lo;
+    let half_room = 6.0 - ROOM_WALL_CLEARANCE;
+    let mut top: f32 = 1e6;
+    if size.z > 0.0 {
+        top = top.min((ROOM_STAGE_TOP - ROOM_FLOOR) / size.z);
+    }
+    if size.y > 0.0 {
+        top = top.min(2.0 * half_room / size.y);
+    }
+    if size.x > 0.0 {
+        top = top.min(13.0 / size.x);
+    }
+    if top >= 1e6 {
+        top = 1.0; // a single point: any scale
+    }
+    let fits = |s: f32| nearest(s) <= farthest(s);
+    let scale = if fits(top) {
+        top
+    } else {
+        // Bisection: `nearest` grows with s and `farthest` shrinks, so the fitting scales
+        // are an interval from 0.
+        let (mut ok, mut bad) = (0.0f32, top);
+        for _ in 0..40 {
+            let mid = 0.5 * (ok + bad);
+            if fits(mid) { ok = mid } else { bad = mid }
+        }
+        ok
+    };
+    let front = nearest(scale);
+    Some(
+        Affine3A::from_translation(Vec3::new(front, 0.0, ROOM_FLOOR))
+            * Affine3A::from_scale(Vec3::splat(scale))
+            * Affine3A::from_translation(-Vec3::new(lo.x, centre_y, lo.z))
+            * turn,
+    )
+}
+
+/// Removes the room props ([`ROOM_PROPS`], by name) whose bounding boxes overlap the box
+/// (`lo`, `hi`).
+pub(super) fn clear_props(world: &mut hecs::World, lo: Vec3, hi: Vec3) {
+    let props: Vec<hecs::Entity> = world
+        .query::<(hecs::Entity, &Name)>()
+        .iter()
+        .filter(|(_, n)| ROOM_PROPS.contains(&n.0.as_str()))
+        .map(|(e, _)| e)
+        .collect();
+    for e in props {
+        let mut single = hecs::World::new();
+        let entity = world.entity(e).expect("exists");
+        if let (Some(mesh), t) = (entity.get::<&Mesh>(), entity.get::<&Transform>()) {
+            single.spawn(((*mesh).clone(), t.map(|t| *t).unwrap_or_default()));
+        }
+        if let (Some(sphere), t) = (entity.get::<&Sphere>(), entity.get::<&Transform>()) {
+            single.spawn((*sphere, t.map(|t| *t).unwrap_or_default()));
+        }
+        if let Some((plo, phi)) = bounding_box(&single)
+            && plo.cmple(hi).all()
+            && phi.cmpge(lo).all()
+        {
+            world.despawn(e).expect("exists");
+        }
+    }
 }
 
 /// Moves every entity of `model` except its cameras into `world`, placed by `placement`
@@ -111,17 +269,74 @@ pub(super) fn merge_model(
     }
 }
 
-/// The bare-model rule: the seed room with `model` standing on its floor at
-/// [`ROOM_FREE_FLOOR_CENTRE`], scaled to fit a `ROOM_MODEL_SIZE` (3 units) box, seen by the room's
-/// camera. The model's cameras are dropped.
-pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
-    let (lo, hi) = bounding_box(&model.world)
+/// Places `model` on the room's stage ([`room_stage_transform`]) in `world` (the room), taking
+/// out the props its box overlaps. The model's cameras are dropped.
+pub(super) fn stage_model(
+    world: &mut hecs::World,
+    model: hecs::World,
+    material: Option<Material>,
+    path: &Path,
+) -> Result<()> {
+    let placement = room_stage_transform(&model)
         .ok_or_else(|| Error::input(path, None, "the file has no geometry to place"))?;
+    let (lo, hi) = bounding_box(&model).expect("has geometry");
+    let corners = (0..8).map(|c| {
+        let pick = |bit: u32, a: f32, b: f32| if c & bit == 0 { a } else { b };
+        placement.transform_point3(Vec3::new(
+            pick(1, lo.x, hi.x),
+            pick(2, lo.y, hi.y),
+            pick(4, lo.z, hi.z),
+        ))
+    });
+    let placed: Vec<Vec3> = corners.collect();
+    let (plo, phi) = box_of(&placed).expect("eight corners");
+    clear_props(world, plo, phi);
+    merge_model(world, model, placement, material);
+    Ok(())
+}
+
+/// The bare-model rule: the seed room with `model` as its subject, on the room's stage
+/// ([`room_stage_transform`]), seen by the room's camera. The model's cameras are dropped.
+pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
+    if bounding_box(&model.world).is_none() {
+        return Err(Error::input(
+            path,
+            None,
+            "the file has no geometry to place",
+        ));
+    }
     let mut room = scene_file::load(Path::new("builtin:room"), BUILTIN_ROOM)?;
-    let placement = fit_transform(lo, hi, ROOM_MODEL_SIZE, ROOM_FREE_FLOOR_CENTRE);
-    merge_model(&mut room.world, model.world, placement, None);
+    stage_model(&mut room.world, model.world, None, path)?;
     room.warnings.extend(model.warnings);
     Ok(room)
+}
+
+/// What to do about a dark image of a model rendered as it is: said by
+/// [`dark_image_warning`].
+pub const DARK_IMAGE_HINT: &str = "render it with --in-room to light it with the seed room";
+
+/// A pixel is lit when its luminance (after the exposure) reaches this: about a 15% grey
+/// once sRGB-encoded.
+const LIT_PIXEL: f32 = 0.02;
+/// An image with fewer lit pixels than this fraction is dark.
+const LIT_FRACTION: f64 = 0.10;
+
+/// A warning if a model file rendered as it is came out dark: fewer than 10% of the pixels
+/// reach a 15% grey (sRGB) at the given exposure (stops).
+pub fn dark_image_warning(image: &Image, exposure: f32) -> Option<String> {
+    let gain = exposure.exp2();
+    let lit = image
+        .pixels
+        .iter()
+        .filter(|p| luminance(**p) * gain >= LIT_PIXEL)
+        .count();
+    let fraction = lit as f64 / image.pixels.len().max(1) as f64;
+    (fraction < LIT_FRACTION).then(|| {
+        format!(
+            "the image is dark: the file's own lights light only {:.1}% of it; {DARK_IMAGE_HINT}",
+            fraction * 100.0
+        )
+    })
 }
 
 /// Adds a camera framing the world's bounding box if the world has none: from the front
@@ -233,5 +448,93 @@ mod tests {
                 < 1e-6
         );
         assert!((t.transform_vector3(Vec3::new(0.0, 6.0, 0.0)).y - 3.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_stage_constants_are_those_of_the_room_file() {
+        let room = scene_file::load(Path::new("builtin:room"), BUILTIN_ROOM).unwrap();
+        let cameras: Vec<Camera> = room.world.query::<&Camera>().iter().copied().collect();
+        assert_eq!(cameras.len(), 1);
+        let c = cameras[0];
+        assert_eq!(c.eye, ROOM_EYE);
+        assert!((c.forward - Vec3::X).length() < 1e-6 && (c.up - Vec3::Z).length() < 1e-6);
+        assert!((c.vfov - 90f32.to_radians()).abs() < 1e-6);
+        let names: Vec<String> = room
+            .world
+            .query::<&Name>()
+            .iter()
+            .map(|n| n.0.clone())
+            .collect();
+        for prop in ROOM_PROPS {
+            assert!(names.iter().any(|n| n == prop), "{prop}");
+        }
+        let (lo, _) = bounding_box(&room.world).unwrap();
+        assert_eq!(lo.z, ROOM_FLOOR);
+    }
+
+    fn unit_cube_world(size: Vec3) -> hecs::World {
+        let mut world = hecs::World::new();
+        let corners: Vec<Vec3> = (0..8)
+            .map(|c| {
+                size * Vec3::new(
+                    (c & 1) as f32 - 0.5,
+                    ((c >> 1) & 1) as f32 - 0.5,
+                    ((c >> 2) & 1) as f32 - 0.5,
+                )
+            })
+            .collect();
+        world.spawn((Mesh {
+            positions: corners,
+            normals: vec![],
+            uvs: vec![],
+            indices: vec![[0, 1, 2], [3, 4, 5], [5, 6, 7]],
+        },));
+        world
+    }
+
+    #[test]
+    fn the_stage_keeps_a_box_in_view_on_the_floor_and_turns_its_front_to_the_camera() {
+        for size in [
+            Vec3::ONE,
+            Vec3::new(10.0, 1.0, 1.0), // wide
+            Vec3::new(1.0, 10.0, 1.0), // deep: turned
+            Vec3::new(0.1, 0.1, 5.0),  // a pole
+        ] {
+            let world = unit_cube_world(size);
+            let t = room_stage_transform(&world).unwrap();
+            let placed: Vec<Vec3> = world_points(&world)
+                .iter()
+                .map(|p| t.transform_point3(*p))
+                .collect();
+            let (lo, hi) = box_of(&placed).unwrap();
+            assert!((lo.z - ROOM_FLOOR).abs() < 1e-4, "{size}: on the floor");
+            assert!(hi.z <= ROOM_STAGE_TOP + 1e-4, "{size}");
+            for p in &placed {
+                let d = p.x - ROOM_EYE.x;
+                assert!(
+                    p.y.abs().max(p.z.abs()) <= ROOM_VIEW_FILL * d * (1.0 + 1e-5),
+                    "{p}"
+                );
+                assert!(p.x <= 13.0 - 0.5 * p.y.abs() && p.y.abs() < 6.0, "{p}");
+            }
+            // The front (-y in the model) faces the camera (-x), unless the model was turned.
+            let front = t.transform_vector3(-Vec3::Y).normalize();
+            if size.y > FLAT_TURN_RATIO * size.x {
+                assert!((front - -Vec3::Y).length() < 1e-5, "{size}: {front}");
+                let width = (hi - lo).y;
+                assert!(
+                    width > 4.0 * (hi - lo).x,
+                    "{size}: the long side faces the camera"
+                );
+            } else {
+                assert!((front - -Vec3::X).length() < 1e-5, "{size}: {front}");
+            }
+            // Largest: one of the limits is reached (view, walls, or the top).
+            let touches_view = placed.iter().any(|p| {
+                let d = p.x - ROOM_EYE.x;
+                p.y.abs().max(p.z.abs()) >= ROOM_VIEW_FILL * d * (1.0 - 1e-3)
+            });
+            assert!(touches_view, "{size}: as near as the view allows");
+        }
     }
 }

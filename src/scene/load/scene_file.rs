@@ -4,7 +4,9 @@
 //! and shapes and models accumulate. `[[model]]` tables place glTF/OBJ files (relative to
 //! the scene file that names them). The README documents the format with `scenes/room.toml`.
 
-use super::{BUILTIN_ROOM, Scene, SceneDefaults, UpAxis, bounding_box, import_model, place};
+use super::{
+    BUILTIN_ROOM, LightUnits, Scene, SceneDefaults, UpAxis, bounding_box, import_model_with, place,
+};
 use crate::error::{Error, Result, closest_match};
 use crate::math::{Affine3A, Quat, Vec3};
 use crate::scene::{Camera, Emitter, FresnelModel, Material, Mesh, Name, Sphere, Transform};
@@ -39,7 +41,9 @@ struct SceneFile {
 struct ModelDef {
     /// Path relative to the scene file.
     file: Spanned<String>,
-    /// Where the model's anchor lands: its origin, or with `fit` its bottom centre.
+    /// Where the model's anchor lands: its origin, or with `fit` its bottom centre. Without
+    /// it, the model stands on the seed room's stage as a bare model does (and then takes no
+    /// `rotation`, `scale` or `fit`).
     #[serde(default)]
     position: Option<[f32; 3]>,
     /// Degrees about x, then y, then z (about the anchor).
@@ -54,6 +58,9 @@ struct ModelDef {
     fit: Option<f32>,
     /// A material of the scene replacing the file's.
     material: Option<Spanned<String>>,
+    /// How the file's glTF light intensities are read ("spec", "unitless", "raw").
+    #[serde(default)]
+    light_units: LightUnits,
 }
 
 /// `[camera]`: a pinhole looking from `eye` at `look_at`.
@@ -582,7 +589,19 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
                 )
             })?),
         };
-        let imported = import_model(&file, def.up)?;
+        let imported = import_model_with(&file, def.up, def.light_units)?;
+        if def.position.is_none() {
+            if def.rotation.is_some() || def.scale.is_some() || def.fit.is_some() {
+                return Err(err(
+                    "rotation, scale and fit need a position (without one, the model stands \
+                     on the room's stage, turned and sized by the bare-model rule)"
+                        .into(),
+                ));
+            }
+            warnings.extend(imported.warnings);
+            place::stage_model(&mut world, imported.world, material, &file)?;
+            continue;
+        }
         let anchor = match def.fit {
             None => Affine3A::IDENTITY,
             Some(fit) => {

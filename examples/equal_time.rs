@@ -1,0 +1,159 @@
+//! Equal-time (or equal-sample) error of a render against a reference EXR: renders the scene
+//! at the reference's size for a time budget or a number of samples per pixel, once per seed,
+//! and prints RMSE, MSE, relative MSE (mean of `(x - ref)^2 / (ref^2 + 0.01)` over pixels and
+//! channels) and the share of the squared error in the worst 1% of pixels (see
+//! `wavetrace::image_error`), then their means over the seeds and the MSE times the seconds
+//! (inverse efficiency: lower is better, and equal for two renderers whose error falls as
+//! 1/time alike).
+//!
+//! ```text
+//! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
+//!     (--spp 16 | --time 4s) [--seeds 4] [--seed S] [--sampler independent|sobol] \
+//!     [--shadow-rays N] [--roulette-min-bounces N] [--no-mis] [--threads N] [--write out.exr]
+//! ```
+//!
+//! The reference should be a high-spp render of the same scene by the same renderer (same
+//! reconstruction filter), with a seed none of the runs use. With several seeds, `--write`
+//! writes the last one's image.
+
+use anyhow::{Context, bail};
+use clap::{Parser, ValueEnum};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use wavetrace::internals::image_error::{ImageError, image_error};
+use wavetrace::math::rng::Sampler;
+use wavetrace::output::read_exr;
+use wavetrace::{Flow, RenderSettings, flatten, load_scene, render, write_image};
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum SamplerArg {
+    Independent,
+    Sobol,
+}
+
+#[derive(Parser)]
+struct Args {
+    /// Scene file.
+    scene: PathBuf,
+    /// Reference image (linear EXR); the render takes its size.
+    #[arg(long)]
+    reference: PathBuf,
+    /// Samples per pixel.
+    #[arg(long, conflicts_with = "time")]
+    spp: Option<u32>,
+    /// Time budget per render: whole passes (samples per pixel) while another one fits.
+    #[arg(long, value_parser = humantime::parse_duration)]
+    time: Option<Duration>,
+    /// Renders, with seeds `seed`, `seed + 1`, ...
+    #[arg(long, default_value_t = 1)]
+    seeds: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Random numbers.
+    #[arg(long, value_enum, default_value_t = SamplerArg::Independent)]
+    sampler: SamplerArg,
+    /// Shadow rays per hit (default: the renderer's).
+    #[arg(long)]
+    shadow_rays: Option<u32>,
+    /// Bounces before Russian roulette (default: the renderer's).
+    #[arg(long)]
+    roulette_min_bounces: Option<u32>,
+    /// Light sampling only, no multiple importance sampling.
+    #[arg(long)]
+    no_mis: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Write the (last) render here.
+    #[arg(long)]
+    write: Option<PathBuf>,
+}
+
+fn main() -> anyhow::Result<()> {
+    let args = Args::parse();
+    if args.spp.is_none() == args.time.is_none() {
+        bail!("give either --spp or --time");
+    }
+    let reference = read_exr(&args.reference)?;
+    let scene = load_scene(&args.scene)?;
+    let flat = flatten(&scene.world, &args.scene)?;
+    let defaults = RenderSettings::default();
+    let base = RenderSettings {
+        width: reference.width,
+        height: reference.height,
+        spp: args.spp.unwrap_or(u32::MAX),
+        shadow_rays: args.shadow_rays.unwrap_or(defaults.shadow_rays),
+        mis: !args.no_mis,
+        sampler: match args.sampler {
+            SamplerArg::Independent => Sampler::Independent,
+            SamplerArg::Sobol => Sampler::Sobol,
+        },
+        roulette_min_bounces: args
+            .roulette_min_bounces
+            .unwrap_or(defaults.roulette_min_bounces),
+        ..defaults
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build()
+        .context("cannot start worker threads")?;
+    let pixels = base.pixel_count();
+    let mut runs: Vec<(f64, u64, ImageError)> = Vec::new();
+    for seed in args.seed..args.seed + args.seeds {
+        let settings = RenderSettings { seed, ..base };
+        let start = Instant::now();
+        let (film, stats) = pool.install(|| {
+            render(&flat, &settings, |p| {
+                let Some(budget) = args.time else {
+                    return Flow::Continue;
+                };
+                let passes = p.samples_done / pixels;
+                if p.samples_done % pixels != 0 || passes == 0 {
+                    return Flow::Continue;
+                }
+                // Stop after a pass if another one of the mean length would overrun.
+                let elapsed = start.elapsed();
+                let per_pass = elapsed / passes as u32;
+                if elapsed + per_pass > budget {
+                    Flow::Stop
+                } else {
+                    Flow::Continue
+                }
+            })
+        })?;
+        let seconds = start.elapsed().as_secs_f64();
+        let image = film.resolve();
+        let e = image_error(&image, &reference).context("size differs from the reference")?;
+        let spp = stats.samples / pixels;
+        println!(
+            "seed {seed}: {spp} spp in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \
+             relative mse {:.5}, top 1% of pixels hold {:.1}% of the squared error",
+            e.rmse(),
+            e.rmse() / e.reference_mean,
+            e.mse,
+            e.relative_mse,
+            100.0 * e.top_percent_share
+        );
+        if let Some(path) = &args.write {
+            write_image(path, &film, 0.0)?;
+        }
+        runs.push((seconds, spp, e));
+    }
+    let n = runs.len() as f64;
+    let mean = |f: &dyn Fn(&(f64, u64, ImageError)) -> f64| runs.iter().map(f).sum::<f64>() / n;
+    let (seconds, spp) = (mean(&|r| r.0), mean(&|r| r.1 as f64));
+    let (mse, relative) = (mean(&|r| r.2.mse), mean(&|r| r.2.relative_mse));
+    // The spread of the MSE over the seeds: its standard error.
+    let mse_error =
+        (runs.iter().map(|r| (r.2.mse - mse).powi(2)).sum::<f64>() / (n - 1.0).max(1.0) / n).sqrt();
+    println!(
+        "mean of {} runs: {spp:.1} spp in {seconds:.2} s: mse {mse:.6} +- {mse_error:.6}, \
+         relative mse {relative:.5}, top 1% share {:.1}%; mse x seconds {:.6}, mse x spp {:.5}",
+        runs.len(),
+        100.0 * mean(&|r| r.2.top_percent_share),
+        mse * seconds,
+        mse * spp
+    );
+    Ok(())
+}

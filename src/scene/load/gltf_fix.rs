@@ -1,0 +1,385 @@
+//! Permissive reading of glTF JSON: what the glTF specification allows but `gltf-json`'s strict
+//! deserialiser refuses is patched in the JSON tree before it is deserialised, and each feature
+//! the importer ignores or approximates is named in one warning per file and feature.
+//!
+//! Patches (the file stays valid glTF; only data wavetrace does not use is dropped): a scene
+//! without `nodes` gets an empty list; animations (including `KHR_animation_pointer` channels,
+//! which have no `node`) and morph targets are removed with a warning; application-specific
+//! attributes (`_PRESSURE`, any name starting with `_`) are removed with a warning; a primitive
+//! that names an accessor the file does not have is removed with a warning; a texture's image is
+//! chosen among its sources (`EXT_texture_webp`, the core `source`, `KHR_texture_basisu`).
+
+use super::gltf_check;
+use crate::error::{Error, Result};
+use gltf::json::Value;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Extensions the importer reads or whose absence has a defined fallback (so a file may
+/// require them): the others in `extensionsRequired` make the file an error.
+pub(super) const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_unlit",
+    "KHR_materials_variants",
+    "KHR_texture_transform",
+    "KHR_texture_basisu",
+    "EXT_texture_webp",
+];
+
+/// Extensions handled or warned about by name elsewhere: not reported as unknown.
+const KNOWN: &[&str] = &[
+    "KHR_animation_pointer",
+    "EXT_mesh_gpu_instancing",
+    "KHR_materials_clearcoat",
+    "KHR_materials_sheen",
+    "KHR_materials_volume",
+    "KHR_materials_iridescence",
+    "KHR_materials_anisotropy",
+    "KHR_materials_dispersion",
+];
+
+/// Parses the JSON of a glTF file (the JSON chunk of a GLB) into a `gltf-json` root,
+/// patching what the specification allows and the deserialiser refuses; `warnings` receives
+/// one line per dropped feature.
+pub(super) fn parse_root(
+    path: &Path,
+    json: &[u8],
+    in_glb: bool,
+    warnings: &mut Vec<String>,
+) -> Result<gltf::json::Root> {
+    let mut value: Value = gltf::json::deserialize::from_slice(json)
+        .map_err(|e| gltf_check::json_error(path, json, in_glb, &e))?;
+    if !value.is_object() {
+        return Err(Error::input(
+            path,
+            None,
+            "invalid glTF: the JSON is not an object",
+        ));
+    }
+    patch(path, &mut value, warnings);
+    gltf::json::deserialize::from_value(value).map_err(|e| {
+        // The patched tree has no lines: parse the original text again for the location.
+        match gltf::json::deserialize::from_slice::<gltf::json::Root>(json) {
+            Err(located) => gltf_check::json_error(path, json, in_glb, &located),
+            Ok(_) => Error::input(path, None, format!("invalid glTF: {e}")),
+        }
+    })
+}
+
+fn array_len(v: &Value) -> usize {
+    v.as_array().map_or(0, Vec::len)
+}
+
+/// The patches of the module documentation, in place.
+fn patch(path: &Path, root: &mut Value, warnings: &mut Vec<String>) {
+    let file = path.display();
+    if let Some(scenes) = root.get_mut("scenes").and_then(Value::as_array_mut) {
+        for scene in scenes.iter_mut().filter_map(Value::as_object_mut) {
+            scene
+                .entry("nodes")
+                .or_insert_with(|| Value::Array(Vec::new()));
+        }
+    }
+    let object = root.as_object_mut().expect("checked by the caller");
+    if let Some(animations) = object.remove("animations") {
+        let n = array_len(&animations);
+        if n > 0 {
+            warnings.push(format!(
+                "{file}: animations are ignored; the scene is shown at rest ({n} animation{})",
+                plural(n)
+            ));
+        }
+    }
+    let accessor_count = object.get("accessors").map_or(0, array_len);
+    let mut app_attributes = BTreeMap::<String, usize>::new();
+    let mut morphed = 0usize;
+    if let Some(meshes) = object.get_mut("meshes").and_then(Value::as_array_mut) {
+        for (m, mesh) in meshes.iter_mut().enumerate() {
+            let mesh_name = match mesh.get("name").and_then(Value::as_str) {
+                Some(n) => format!("mesh '{n}' (index {m})"),
+                None => format!("mesh {m}"),
+            };
+            if let Some(mesh) = mesh.as_object_mut() {
+                mesh.remove("weights");
+            }
+            let Some(primitives) = mesh.get_mut("primitives").and_then(Value::as_array_mut) else {
+                continue;
+            };
+            let mut p = 0usize;
+            primitives.retain_mut(|primitive| {
+                let index = p;
+                p += 1;
+                let Some(primitive) = primitive.as_object_mut() else {
+                    return true;
+                };
+                if primitive
+                    .remove("targets")
+                    .is_some_and(|t| array_len(&t) > 0)
+                {
+                    morphed += 1;
+                }
+                if let Some(attributes) = primitive
+                    .get_mut("attributes")
+                    .and_then(Value::as_object_mut)
+                {
+                    attributes.retain(|name, _| {
+                        let application = name.starts_with('_');
+                        if application {
+                            *app_attributes.entry(name.clone()).or_default() += 1;
+                        }
+                        !application
+                    });
+                }
+                let named = primitive
+                    .get("attributes")
+                    .and_then(Value::as_object)
+                    .into_iter()
+                    .flat_map(|a| a.values())
+                    .chain(primitive.get("indices"));
+                let missing = named
+                    .filter_map(Value::as_u64)
+                    .find(|&a| a as usize >= accessor_count);
+                if let Some(bad) = missing {
+                    warnings.push(format!(
+                        "{file}:{mesh_name}, primitive {index}: accessor {bad} does not exist \
+                         (the file has {accessor_count}); the primitive is skipped"
+                    ));
+                    return false;
+                }
+                true
+            });
+        }
+    }
+    if !app_attributes.is_empty() {
+        let names: Vec<String> = app_attributes.keys().cloned().collect();
+        warnings.push(format!(
+            "{file}: application-specific vertex attributes are ignored ({})",
+            names.join(", ")
+        ));
+    }
+    if morphed > 0 {
+        warnings.push(format!(
+            "{file}: morph targets are ignored; meshes are shown in their base shape ({morphed} \
+             primitive{})",
+            plural(morphed)
+        ));
+    }
+    choose_texture_sources(root);
+}
+
+/// A texture's `source` becomes the image wavetrace can best decode: the `EXT_texture_webp`
+/// image, else the core (PNG/JPEG) source, else the `KHR_texture_basisu` (KTX2) one, whose
+/// decoding then fails with a warning that names the format.
+fn choose_texture_sources(root: &mut Value) {
+    let Some(textures) = root.get_mut("textures").and_then(Value::as_array_mut) else {
+        return;
+    };
+    for texture in textures.iter_mut().filter_map(Value::as_object_mut) {
+        let from_extension = |name: &str| {
+            texture
+                .get("extensions")
+                .and_then(|e| e.get(name))
+                .and_then(|e| e.get("source"))
+                .cloned()
+        };
+        let chosen = from_extension("EXT_texture_webp")
+            .or_else(|| texture.get("source").cloned())
+            .or_else(|| from_extension("KHR_texture_basisu"));
+        if let Some(source) = chosen {
+            texture.insert("source".to_string(), source);
+        }
+    }
+}
+
+/// "s" for counts other than one.
+pub(super) fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
+/// One warning per feature the file uses that the importer ignores or approximates (the
+/// material-level ones are counted over the materials meshes use or not alike).
+pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<String>) {
+    let file = path.display();
+    let mut count = |what: &str, n: usize, unit: &str| {
+        if n > 0 {
+            warnings.push(format!("{file}: {what} ({n} {unit}{})", plural(n)));
+        }
+    };
+    let materials: Vec<gltf::Material> = document.materials().collect();
+    count(
+        "occlusion maps are ignored",
+        materials
+            .iter()
+            .filter(|m| m.occlusion_texture().is_some())
+            .count(),
+        "material",
+    );
+    count(
+        "alphaMode MASK and BLEND are ignored; the surfaces render opaque",
+        materials
+            .iter()
+            .filter(|m| m.alpha_mode() != gltf::material::AlphaMode::Opaque)
+            .count(),
+        "material",
+    );
+    count(
+        "KHR_materials_unlit is approximated: the base colour is lit like any surface",
+        materials
+            .iter()
+            .filter(|m| m.extension_value("KHR_materials_unlit").is_some())
+            .count(),
+        "material",
+    );
+    let handled = [
+        "KHR_materials_emissive_strength",
+        "KHR_materials_ior",
+        "KHR_materials_specular",
+        "KHR_materials_transmission",
+        "KHR_materials_pbrSpecularGlossiness",
+        "KHR_materials_unlit",
+        "KHR_materials_variants",
+    ];
+    let mut ignored = BTreeMap::<String, usize>::new();
+    for m in &materials {
+        for name in m.extensions().into_iter().flat_map(|e| e.keys()) {
+            if !handled.contains(&name.as_str()) {
+                *ignored.entry(name.clone()).or_default() += 1;
+            }
+        }
+    }
+    for (name, n) in &ignored {
+        count(&format!("{name} is ignored"), *n, "material");
+    }
+    let primitives: Vec<gltf::Primitive> = document.meshes().flat_map(|m| m.primitives()).collect();
+    count(
+        "vertex colours (COLOR_0) are ignored",
+        primitives
+            .iter()
+            .filter(|p| p.get(&gltf::Semantic::Colors(0)).is_some())
+            .count(),
+        "primitive",
+    );
+    count(
+        "KHR_materials_variants is ignored: the default materials are shown",
+        primitives
+            .iter()
+            .filter(|p| p.extension_value("KHR_materials_variants").is_some())
+            .count(),
+        "primitive",
+    );
+    let nodes: Vec<gltf::Node> = document.nodes().collect();
+    count(
+        "skins are ignored; skinned meshes are shown unposed",
+        nodes.iter().filter(|n| n.skin().is_some()).count(),
+        "node",
+    );
+    count(
+        "EXT_mesh_gpu_instancing is ignored: each node is drawn once, without its instances",
+        nodes
+            .iter()
+            .filter(|n| n.extension_value("EXT_mesh_gpu_instancing").is_some())
+            .count(),
+        "node",
+    );
+    count(
+        "minification filters are ignored: textures are sampled bilinearly without mipmaps",
+        document
+            .samplers()
+            .filter(|s| {
+                use gltf::texture::MinFilter as F;
+                matches!(
+                    s.min_filter(),
+                    Some(F::Nearest | F::NearestMipmapNearest | F::NearestMipmapLinear)
+                )
+            })
+            .count(),
+        "sampler",
+    );
+    for name in document.extensions_used() {
+        if !SUPPORTED_REQUIRED.contains(&name)
+            && !KNOWN.contains(&name)
+            && !ignored.contains_key(name)
+        {
+            warnings.push(format!(
+                "{file}: the extension {name} is not supported; ignored"
+            ));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(json: &str) -> (gltf::json::Root, Vec<String>) {
+        let mut warnings = Vec::new();
+        let root =
+            parse_root(Path::new("m.gltf"), json.as_bytes(), false, &mut warnings).expect("parses");
+        (root, warnings)
+    }
+
+    #[test]
+    fn scenes_without_nodes_and_application_attributes_parse() {
+        let (root, warnings) = parse(
+            r#"{"asset": {"version": "2.0"}, "scenes": [{}],
+                "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "_PRESSURE": 0}}]}]}"#,
+        );
+        assert!(root.scenes[0].nodes.is_empty());
+        assert_eq!(root.meshes[0].primitives[0].attributes.len(), 1);
+        assert_eq!(
+            warnings,
+            ["m.gltf: application-specific vertex attributes are ignored (_PRESSURE)"]
+        );
+    }
+
+    #[test]
+    fn pointer_animations_are_dropped_with_one_warning() {
+        let (root, warnings) = parse(
+            r#"{"asset": {"version": "2.0"},
+                "animations": [{"channels": [{"sampler": 0, "target": {"path": "pointer",
+                  "extensions": {"KHR_animation_pointer": {"pointer": "/materials/0"}}}}],
+                  "samplers": [{"input": 0, "output": 0}]}, {"channels": [], "samplers": []}]}"#,
+        );
+        assert!(root.animations.is_empty());
+        assert_eq!(
+            warnings,
+            ["m.gltf: animations are ignored; the scene is shown at rest (2 animations)"]
+        );
+    }
+
+    #[test]
+    fn primitives_with_missing_accessors_are_dropped_alone() {
+        let (root, warnings) = parse(
+            r#"{"asset": {"version": "2.0"},
+                "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}],
+                "meshes": [{"name": "m", "primitives": [{"attributes": {"POSITION": 7}},
+                  {"attributes": {"POSITION": 0}}]}]}"#,
+        );
+        assert_eq!(root.meshes[0].primitives.len(), 1);
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0].contains("mesh 'm' (index 0), primitive 0: accessor 7 does not exist"),
+            "{warnings:?}"
+        );
+    }
+
+    #[test]
+    fn webp_sources_win_and_basisu_is_the_last_resort() {
+        let (root, _) = parse(
+            r#"{"asset": {"version": "2.0"}, "images": [{"uri": "a.png"}, {"uri": "b.webp"},
+                  {"uri": "c.ktx2"}],
+                "textures": [
+                  {"source": 0, "extensions": {"EXT_texture_webp": {"source": 1}}},
+                  {"source": 0, "extensions": {"KHR_texture_basisu": {"source": 2}}},
+                  {"extensions": {"KHR_texture_basisu": {"source": 2}}}]}"#,
+        );
+        let sources: Vec<usize> = root.textures.iter().map(|t| t.source.value()).collect();
+        assert_eq!(sources, [1, 0, 2]);
+    }
+}

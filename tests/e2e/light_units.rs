@@ -1,0 +1,213 @@
+//! glTF light units and the never-black rule.
+//!
+//! A point light of known intensity 2 units above a Lambertian plane (albedo 0.5) gives the
+//! radiance 0.5 / pi * I / 2^2 under it, I in W/sr: the file's number is read as candela
+//! (/ 683 lm/W, the default), as W/sr (`unitless`), or as Blender's watts (`raw`, / 4 pi).
+//! A directional light's number is lux (/ 683), W/m^2 (`unitless`) or W/m^2 (`raw`).
+//!
+//! A model whose only light is a small emissive part goes into the lit room unless it also
+//! brings a camera; a model rendered as it is that comes out dark gets a warning.
+
+use crate::import::{Buffer, punctual_light_doc, render_mean, scratch, write_gltf};
+use serde_json::json;
+use std::f32::consts::PI;
+use std::process::Command;
+use wavetrace::flatten;
+use wavetrace::math::Rgb;
+use wavetrace::scene::Name;
+use wavetrace::scene::load::{LightUnits, LoadOptions, Placement, load_scene_placed};
+
+#[test]
+fn light_intensities_are_read_in_the_asked_units() {
+    let dir = scratch("units");
+    let (number, height) = (5464.0f32, 2.0f32); // 683 * 8
+    for (units, per_sr, per_m2) in [
+        (LightUnits::Spec, number / 683.0, number / 683.0),
+        (LightUnits::Unitless, number, number),
+        (LightUnits::Raw, number / (4.0 * PI), number),
+    ] {
+        for (kind, light) in [
+            ("point", json!({"type": "point", "intensity": number})),
+            ("sun", json!({"type": "directional", "intensity": number})),
+        ] {
+            let path = write_gltf(
+                &dir,
+                &format!("{kind}.gltf"),
+                &punctual_light_doc(light, height),
+            );
+            let options = LoadOptions {
+                light_units: units,
+                ..Default::default()
+            };
+            let (scene, placement) = load_scene_placed(&path, &options).unwrap();
+            assert_eq!(placement, Placement::AsIs);
+            let flat = flatten(&scene.world, &path).unwrap();
+            let irradiance = if kind == "sun" {
+                per_m2
+            } else {
+                per_sr / (height * height)
+            };
+            let expected = 0.5 / PI * irradiance;
+            let got = render_mean(&flat);
+            assert!(
+                (got - Rgb::splat(expected)).abs().max_element() < 1e-4 * expected,
+                "{units:?} {kind}: {got} vs {expected}"
+            );
+        }
+    }
+}
+
+/// A 100 x 100 grey ground with a 0.1-unit emissive triangle above it, with or without a
+/// camera.
+fn glowing_model(with_camera: bool) -> serde_json::Value {
+    let mut b = Buffer::default();
+    let ground = b.vec3s(&[
+        [-50.0, 0.0, 50.0],
+        [50.0, 0.0, 50.0],
+        [50.0, 0.0, -50.0],
+        [-50.0, 0.0, -50.0],
+    ]);
+    let ground_indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    let glow = b.vec3s(&[[0.0, 1.0, 0.0], [0.1, 1.0, 0.0], [0.0, 1.1, 0.0]]);
+    let mut nodes = vec![
+        json!({"name": "ground", "mesh": 0}),
+        json!({"name": "glow", "mesh": 1}),
+    ];
+    if with_camera {
+        nodes.push(json!({"name": "eye", "camera": 0, "translation": [0.0, 3.0, 10.0]}));
+    }
+    let node_ids: Vec<usize> = (0..nodes.len()).collect();
+    b.into_doc(json!({
+        "scenes": [{"nodes": node_ids}],
+        "nodes": nodes,
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "aspectRatio": 1.0, "znear": 0.01}}],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1.0], "metallicFactor": 0.0}},
+            {"emissiveFactor": [1.0, 1.0, 1.0]}
+        ],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": ground}, "indices": ground_indices, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": glow}, "material": 1}]}
+        ]
+    }))
+}
+
+#[test]
+fn a_model_lit_only_by_its_own_glow_goes_into_the_room_unless_it_brings_a_camera() {
+    let dir = scratch("glow");
+    let bare = write_gltf(&dir, "glow.gltf", &glowing_model(false));
+    let (scene, placement) = load_scene_placed(&bare, &LoadOptions::default()).unwrap();
+    assert_eq!(placement, Placement::InRoom);
+    assert!(
+        scene
+            .world
+            .query::<&Name>()
+            .iter()
+            .any(|n| n.0 == "area light"),
+        "lit by the room's light"
+    );
+    // In the room, the model is lit: its ground shows clearly (not just the glow).
+    let flat = flatten(&scene.world, &bare).unwrap();
+    assert!(render_mean(&flat).max_element() > 0.05);
+
+    // With a camera, the file is a scene set up for rendering: as it is. It comes out dark
+    // (one small glowing triangle), and the command line says how to light it.
+    let staged = write_gltf(&dir, "glow-camera.gltf", &glowing_model(true));
+    let (_, placement) = load_scene_placed(&staged, &LoadOptions::default()).unwrap();
+    assert_eq!(placement, Placement::AsIs);
+    let out = dir.join("glow.png");
+    let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render",
+            staged.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .args(["--width", "32", "--spp", "2", "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning: the image is dark") && stderr.contains("--in-room"),
+        "{stderr}"
+    );
+    // --width alone on a camera without an aspect ratio... this one has 1:1: 32 x 32.
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (32, 32));
+    // The room's render of the same model is not dark: no warning.
+    let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render",
+            bare.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .args(["--width", "32", "--spp", "2", "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success() && !stderr.contains("dark"), "{stderr}");
+}
+
+#[test]
+fn width_alone_without_a_camera_aspect_gives_a_square_image_and_up_is_checked() {
+    // A lit file without a camera gets a framing camera with no aspect ratio.
+    let dir = scratch("width");
+    let mut doc = punctual_light_doc(json!({"type": "point", "intensity": 683.0}), 2.0);
+    doc["nodes"].as_array_mut().unwrap().remove(1);
+    doc["scenes"][0]["nodes"] = json!([0, 1]);
+    doc.as_object_mut().unwrap().remove("cameras");
+    let path = write_gltf(&dir, "nocam.gltf", &doc);
+    for (flag, expected) in [("--width", (40, 40)), ("--height", (24, 24))] {
+        let out = dir.join("w.png");
+        let value = expected.0.to_string();
+        let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
+            .args([
+                "render",
+                path.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+            ])
+            .args([flag, value.as_str(), "--spp", "1", "--quiet", "--up", "z"])
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let img = image::open(&out).unwrap();
+        assert_eq!((img.width(), img.height()), expected, "{flag}");
+    }
+    // The room has a 800 x 800 [render] size: --width alone keeps its square.
+    let glow = write_gltf(&dir, "glow.gltf", &glowing_model(false));
+    let out = dir.join("room.png");
+    let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render",
+            glow.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .args(["--width", "20", "--spp", "1", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (20, 20));
+    // --up on a scene file is refused, saying where it belongs.
+    let room = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
+    let run = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
+        .args(["render", room.to_str().unwrap(), "--up", "z", "--quiet"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("[[model]]"), "{stderr}");
+}
