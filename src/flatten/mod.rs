@@ -17,7 +17,7 @@ pub mod spheres;
 pub mod triangles;
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
+use crate::bsdf::{Bsdf, FresnelModel, Layered, MetallicRoughness};
 use crate::error::{Error, Result};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
@@ -502,7 +502,30 @@ fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
             specular_color,
             ior,
             transmission,
+            clearcoat,
+            clearcoat_roughness,
+            sheen_color,
+            sheen_roughness,
         } => {
+            let base = MetallicRoughness {
+                base_color,
+                metallic,
+                alpha: alpha_from_roughness(roughness),
+                ior,
+                specular,
+                specular_color,
+                transmission,
+            };
+            let layered = Layered {
+                base,
+                clearcoat,
+                clearcoat_alpha: alpha_from_roughness(clearcoat_roughness),
+                sheen_color,
+                sheen_roughness,
+            };
+            if layered.has_layers() {
+                return Bsdf::layered(layered);
+            }
             if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
                 // Smooth clear glass stays the exact delta dielectric.
                 return Bsdf::Dielectric {
@@ -516,15 +539,7 @@ fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 // metal, Schlick's brightening toward grazing angles is left out).
                 return Bsdf::Mirror { tint: base_color };
             }
-            Bsdf::metallic_roughness(MetallicRoughness {
-                base_color,
-                metallic,
-                alpha: alpha_from_roughness(roughness),
-                ior,
-                specular,
-                specular_color,
-                transmission,
-            })
+            Bsdf::metallic_roughness(base)
         }
     }
 }
