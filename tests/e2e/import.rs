@@ -1227,7 +1227,7 @@ fn clearcoat_and_sheen_from_gltf_render_their_closed_form_albedos() {
     let settings = RenderSettings {
         width: 8,
         height: 8,
-        spp: 64,
+        spp: 256,
         ..Default::default()
     };
     for (name, material, expected) in cases {
