@@ -308,8 +308,8 @@ fn sheen_is_reciprocal() {
     for k in 0..1000u32 {
         let key = path_key(49, k, 0);
         let (a, b) = (uniform2(key, 0, 0), uniform2(key, 0, 2));
-        let wo = direction(a.x * 1.55, a.y * 6.28);
-        let wi = direction(b.x * 1.55, b.y * 6.28);
+        let wo = direction(a.x * 1.55, a.y * std::f32::consts::TAU);
+        let wi = direction(b.x * 1.55, b.y * std::f32::consts::TAU);
         let (f, g) = (m.eval(wo, wi), m.eval(wi, wo));
         assert!(
             (f - g).abs().max_element() <= 1e-4 * f.max_element().max(1e-2),
