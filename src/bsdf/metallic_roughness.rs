@@ -149,10 +149,8 @@ impl MetallicRoughness {
     /// Probability of the diffuse lobe for `wo` (upper side); the rest goes to the microfacets.
     #[inline]
     fn diffuse_probability(&self, wo: Vec3A, eta: f32) -> f32 {
-        let (opaque, glass, metal) = self.shares();
-        let diffuse = opaque
-            * luminance(self.base_color)
-            * (1.0 - self.specular * max_component(self.dielectric_f0()));
+        let (_, glass, metal) = self.shares();
+        let diffuse = self.diffuse_albedo();
         if diffuse <= 0.0 {
             return 0.0;
         }
@@ -160,6 +158,27 @@ impl MetallicRoughness {
         let present = metal > 0.0 || glass > 0.0 || self.specular > 0.0;
         let microfacet = if present { (r + t).max(1e-4) } else { 0.0 };
         diffuse / (diffuse + microfacet)
+    }
+
+    /// Approximate albedo (luminance) of the diffuse lobe.
+    #[inline]
+    fn diffuse_albedo(&self) -> f32 {
+        let (opaque, _, _) = self.shares();
+        opaque
+            * luminance(self.base_color)
+            * (1.0 - self.specular * max_component(self.dielectric_f0()))
+    }
+
+    /// Approximate directional albedo (luminance) at `wo`, for choosing among the lobes of
+    /// layers over this surface.
+    #[inline]
+    pub(super) fn approximate_albedo(&self, wo: Vec3A) -> f32 {
+        if let Some(albedo) = self.as_lambertian() {
+            return luminance(albedo);
+        }
+        let (wo, _, eta) = self.to_upper(wo, Vec3A::Z);
+        let (r, t) = self.microfacet_split(wo.z, eta);
+        self.diffuse_albedo() + r + t
     }
 
     /// Approximate reflected and transmitted albedos of the microfacet lobe at cosine `c`.

@@ -14,11 +14,14 @@
 pub(crate) mod chi_square;
 pub mod dielectric;
 pub mod lambert;
+pub mod layered;
 pub mod metallic_roughness;
 pub mod microfacet;
 pub mod mirror;
+pub mod sheen;
 
 pub use dielectric::FresnelModel;
+pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
 
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
@@ -49,6 +52,10 @@ pub enum Bsdf {
     /// extensions). Build it with [`Bsdf::metallic_roughness`], which keeps exactly
     /// Lambertian parameter sets Lambertian.
     MetallicRoughness(MetallicRoughness),
+    /// A metallic-roughness surface under `KHR_materials_clearcoat` and
+    /// `KHR_materials_sheen` layers. Build it with [`Bsdf::layered`], which keeps a surface
+    /// without layers [`Bsdf::MetallicRoughness`] (or Lambertian).
+    Layered(Layered),
 }
 
 /// A sampled direction with its path-throughput factor.
@@ -74,10 +81,24 @@ impl Bsdf {
         }
     }
 
+    /// The render-side model of a metallic-roughness surface under layers: exactly
+    /// [`Bsdf::metallic_roughness`] of the base when there is no layer (clearcoat 0, black
+    /// sheen), so that surfaces without the extensions are unchanged.
+    pub fn layered(layered: Layered) -> Self {
+        if layered.has_layers() {
+            Bsdf::Layered(layered)
+        } else {
+            Bsdf::metallic_roughness(layered.base)
+        }
+    }
+
     /// Whether every lobe is a delta distribution (no light sampling is possible).
     #[inline]
     pub fn is_delta(&self) -> bool {
-        !matches!(self, Bsdf::Lambertian { .. } | Bsdf::MetallicRoughness(_))
+        !matches!(
+            self,
+            Bsdf::Lambertian { .. } | Bsdf::MetallicRoughness(_) | Bsdf::Layered(_)
+        )
     }
 
     /// The factor `1 / eta^2` by which a sample transmitted from `wo` (local frame) through
@@ -106,6 +127,7 @@ impl Bsdf {
             Bsdf::Lambertian { albedo } => albedo == Rgb::ZERO,
             Bsdf::Mirror { tint } | Bsdf::Dielectric { tint, .. } => tint == Rgb::ZERO,
             Bsdf::MetallicRoughness(params) => params.is_black(),
+            Bsdf::Layered(layered) => layered.is_black(),
         }
     }
 
@@ -128,6 +150,13 @@ impl Bsdf {
                 base_color: params.base_color * colour,
                 ..params
             }),
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                base: MetallicRoughness {
+                    base_color: layered.base.base_color * colour,
+                    ..layered.base
+                },
+                ..layered
+            }),
         }
     }
 
@@ -136,14 +165,19 @@ impl Bsdf {
     /// [`Bsdf::MetallicRoughness`] has these parameters.
     #[inline]
     pub fn with_metallic_roughness_scaled(self, metallic_scale: f32, roughness_scale: f32) -> Bsdf {
+        let scaled = |params: MetallicRoughness| MetallicRoughness {
+            metallic: params.metallic * metallic_scale,
+            // alpha = roughness^2, so it scales by the square; the clamp to MIN_ALPHA
+            // commutes with the scale because the scale is at most 1.
+            alpha: (params.alpha * roughness_scale * roughness_scale)
+                .clamp(microfacet::MIN_ALPHA, 1.0),
+            ..params
+        };
         match self {
-            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(MetallicRoughness {
-                metallic: params.metallic * metallic_scale,
-                // alpha = roughness^2, so it scales by the square; the clamp to MIN_ALPHA
-                // commutes with the scale because the scale is at most 1.
-                alpha: (params.alpha * roughness_scale * roughness_scale)
-                    .clamp(microfacet::MIN_ALPHA, 1.0),
-                ..params
+            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(scaled(params)),
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                base: scaled(layered.base),
+                ..layered
             }),
             other => other,
         }
@@ -155,6 +189,7 @@ impl Bsdf {
         match *self {
             Bsdf::Lambertian { albedo } => lambert::eval(albedo, wo, wi),
             Bsdf::MetallicRoughness(params) => params.eval(wo, wi),
+            Bsdf::Layered(layered) => layered.eval(wo, wi),
             Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => Rgb::ZERO,
         }
     }
@@ -165,6 +200,7 @@ impl Bsdf {
         match *self {
             Bsdf::Lambertian { .. } => lambert::pdf(wo, wi),
             Bsdf::MetallicRoughness(params) => params.pdf(wo, wi),
+            Bsdf::Layered(layered) => layered.pdf(wo, wi),
             Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => 0.0,
         }
     }
@@ -199,6 +235,7 @@ impl Bsdf {
                 dielectric::sample(ior, fresnel, tint, wo, u_lobe)
             }
             Bsdf::MetallicRoughness(params) => params.sample(wo, u_lobe, u),
+            Bsdf::Layered(layered) => layered.sample(wo, u_lobe, u),
         }
     }
 }
@@ -218,6 +255,13 @@ mod tests {
             },
             Bsdf::metallic_roughness(MetallicRoughness::new(Rgb::new(0.9, 0.6, 0.3), 1.0, 0.4)),
             Bsdf::Mirror { tint: Rgb::ONE },
+            Bsdf::layered(Layered {
+                base: MetallicRoughness::new(Rgb::new(0.2, 0.3, 0.4), 0.0, 0.7),
+                clearcoat: 0.8,
+                clearcoat_alpha: 0.05,
+                sheen_color: Rgb::new(0.9, 0.5, 0.7),
+                sheen_roughness: 0.4,
+            }),
         ];
         for (b, bsdf) in bsdfs.iter().enumerate() {
             for i in 0..500 {

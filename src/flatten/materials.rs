@@ -3,7 +3,7 @@
 //! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, FresnelModel, MetallicRoughness};
+use crate::bsdf::{Bsdf, FresnelModel, Layered, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use crate::scene::{Material, MaterialTextures, TextureSlot};
 use crate::texture::{SurfaceTextures, Texture, TextureRef};
@@ -24,7 +24,30 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
             specular_color,
             ior,
             transmission,
+            clearcoat,
+            clearcoat_roughness,
+            sheen_color,
+            sheen_roughness,
         } => {
+            let base = MetallicRoughness {
+                base_color,
+                metallic,
+                alpha: alpha_from_roughness(roughness),
+                ior,
+                specular,
+                specular_color,
+                transmission,
+            };
+            let layered = Layered {
+                base,
+                clearcoat,
+                clearcoat_alpha: alpha_from_roughness(clearcoat_roughness),
+                sheen_color,
+                sheen_roughness,
+            };
+            if layered.has_layers() {
+                return Bsdf::layered(layered);
+            }
             if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
                 // Smooth clear glass stays the exact delta dielectric.
                 return Bsdf::Dielectric {
@@ -38,15 +61,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 // metal, Schlick's brightening toward grazing angles is left out).
                 return Bsdf::Mirror { tint: base_color };
             }
-            Bsdf::metallic_roughness(MetallicRoughness {
-                base_color,
-                metallic,
-                alpha: alpha_from_roughness(roughness),
-                ior,
-                specular,
-                specular_color,
-                transmission,
-            })
+            Bsdf::metallic_roughness(base)
         }
     }
 }

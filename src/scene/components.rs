@@ -68,7 +68,9 @@ pub enum Material {
         tint: Rgb,
     },
     /// glTF 2.0 metallic-roughness surface with `KHR_materials_specular`, `KHR_materials_ior`
-    /// and `KHR_materials_transmission` (see `bsdf::metallic_roughness` for the model).
+    /// and `KHR_materials_transmission` (see `bsdf::metallic_roughness` for the model), under
+    /// optional `KHR_materials_clearcoat` and `KHR_materials_sheen` layers (`bsdf::layered`;
+    /// with either, the exact special cases below do not apply).
     /// A non-metal with `specular` 0 and no transmission is exactly [`Material::Lambertian`];
     /// clear glass with roughness 0 is exactly [`Material::Dielectric`]; a metal with
     /// roughness 0 (and no metallic-roughness texture) is [`Material::Mirror`] tinted by the
@@ -89,6 +91,15 @@ pub enum Material {
         ior: f32,
         /// Share of rough glass in the dielectric, in [0, 1] (glTF default 0).
         transmission: f32,
+        /// `KHR_materials_clearcoat` strength in [0, 1]: a clear GGX dielectric layer (ior
+        /// 1.5) on top (0: none, the default; see `bsdf::layered`).
+        clearcoat: f32,
+        /// Perceptual roughness of the clear coat in [0, 1] (default 0).
+        clearcoat_roughness: f32,
+        /// `KHR_materials_sheen` colour, linear RGB in [0, 1] (black: no sheen, the default).
+        sheen_color: Rgb,
+        /// Perceptual roughness of the sheen in [0, 1] (default 0; below 0.05 taken as 0.05).
+        sheen_roughness: f32,
     },
 }
 

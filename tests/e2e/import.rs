@@ -188,6 +188,7 @@ fn blender_gltf_export_gives_the_documented_scene() {
                 specular_color,
                 ior,
                 transmission,
+                ..
             } => assert!(
                 close(base_color, base, 1e-6)
                     && (metallic, roughness, specular, transmission)
@@ -318,6 +319,10 @@ fn blender_obj_export_gives_the_documented_objects() {
         specular_color: Rgb::ZERO,
         ior: 1.5,
         transmission: 0.0,
+        clearcoat: 0.0,
+        clearcoat_roughness: 0.0,
+        sheen_color: Rgb::ZERO,
+        sheen_roughness: 0.0,
     };
     assert_eq!(cube.material, diffuse(0.7, 0.1, 0.1));
     assert_eq!(cylinder.material, diffuse(0.1, 0.6, 0.2));
@@ -562,6 +567,10 @@ fn sparse_accessors_and_several_primitives_with_mapped_materials() {
             specular_color: Rgb::ONE,
             ior: 1.5,
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         }
     );
     let gold = parts
@@ -961,6 +970,10 @@ fn mtl_mapping_covers_mirror_glass_emitter_and_texture() {
             specular_color: Rgb::splat(2.0 * ks),
             ior,
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         };
     assert_eq!(o["brushed"].material, pbr(0.0, 1.0, 0.5, 0.25, 1.4));
     assert_eq!(o["satin"].material, pbr(0.5, 0.0, 0.3, 0.5, 1.5));
@@ -1110,4 +1123,169 @@ fn model_tables_place_files_in_a_scene() {
         e.contains("missing.toml") && e.contains("nope.obj") && e.contains("line 6"),
         "{e}"
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// Clearcoat and sheen.
+
+/// A quad (glTF y = 0, front +y) of `material` inside a closed box that emits radiance 1 from
+/// both sides and reflects nothing, seen at 60 degrees from the quad's normal by a camera of
+/// tiny field of view: each pixel is the quad's directional albedo at mu = 0.5, times 1.
+fn layered_furnace_doc(material: Value) -> Value {
+    let mut b = Buffer::default();
+    let quad = b.vec3s(&[
+        [-1.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 0.0, -1.0],
+        [-1.0, 0.0, -1.0],
+    ]);
+    let quad_indices = b.indices(&[0, 1, 2, 0, 2, 3]);
+    // Corner k has x, y, z = +-10 by its bits 2, 1, 0.
+    let corners: Vec<[f32; 3]> = (0..8)
+        .map(|k| [4, 2, 1].map(|bit| if k & bit != 0 { 10.0 } else { -10.0 }))
+        .collect();
+    let cube = b.vec3s(&corners);
+    let faces = [
+        [0, 1, 3, 2],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 3, 7, 5],
+    ];
+    let cube_indices: Vec<u16> = faces
+        .iter()
+        .flat_map(|[a, b, c, d]| [*a, *b, *c, *a, *c, *d])
+        .collect();
+    let cube_indices = b.indices(&cube_indices);
+    let half = 15f32.to_radians(); // -30 degrees about x: looking along (0, -0.5, -0.866)
+    b.into_doc(json!({
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "extensionsUsed": ["KHR_materials_specular", "KHR_materials_clearcoat", "KHR_materials_sheen"],
+        "nodes": [
+            {"name": "probe", "mesh": 0},
+            {"name": "sky", "mesh": 1},
+            {"name": "eye", "camera": 0, "translation": [0.0, 0.5, 0.75f32.sqrt()],
+             "rotation": [-half.sin(), 0.0, 0.0, half.cos()]}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.001, "aspectRatio": 1.0, "znear": 0.01}}],
+        "materials": [material,
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0], "metallicFactor": 0.0},
+             "emissiveFactor": [1.0, 1.0, 1.0], "doubleSided": true,
+             "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": quad}, "indices": quad_indices, "material": 0}]},
+            {"primitives": [{"attributes": {"POSITION": cube}, "indices": cube_indices, "material": 1}]}
+        ]
+    }))
+}
+
+/// A Lambertian base of `albedo` (no specular layer) with the given extensions added.
+fn layered_material(albedo: f32, extensions: Value) -> Value {
+    let mut m = json!({
+        "pbrMetallicRoughness": {"baseColorFactor": [albedo, albedo, albedo, 1.0], "metallicFactor": 0.0},
+        "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}
+    });
+    for (k, v) in extensions.as_object().unwrap() {
+        m["extensions"][k] = v.clone();
+    }
+    m
+}
+
+#[test]
+fn clearcoat_and_sheen_from_gltf_render_their_closed_form_albedos() {
+    // At mu = 0.5 a smooth coat reflects Fc = 0.04 + 0.96 * 0.5^5 = 0.07 over a black base
+    // (the coat's single-scattering albedo at alpha 1e-3 is 1 - O(1e-6)); over a white base the
+    // furnace stays at exactly 1; a sheen over a black base reflects sheen_color * E(0.5, r)
+    // (the table the unit tests check against quadrature and Monte Carlo).
+    let dir = scratch("layers");
+    let fc = 0.04 + 0.96 * 0.5f64.powi(5);
+    let sheen = Rgb::new(1.0, 0.5, 0.25);
+    let e = wavetrace::bsdf::sheen::albedo(0.5, 0.6) as f64;
+    let cases = [
+        (
+            "coat over black",
+            layered_material(
+                0.0,
+                json!({"KHR_materials_clearcoat": {"clearcoatFactor": 1.0}}),
+            ),
+            [fc; 3],
+        ),
+        (
+            "half coat over black",
+            layered_material(
+                0.0,
+                json!({"KHR_materials_clearcoat": {"clearcoatFactor": 0.5}}),
+            ),
+            [0.5 * fc; 3],
+        ),
+        (
+            "coat over white",
+            layered_material(
+                1.0,
+                json!({"KHR_materials_clearcoat": {"clearcoatFactor": 1.0}}),
+            ),
+            [1.0; 3],
+        ),
+        (
+            "sheen over black",
+            layered_material(
+                0.0,
+                json!({"KHR_materials_sheen": {"sheenColorFactor": [1.0, 0.5, 0.25], "sheenRoughnessFactor": 0.6}}),
+            ),
+            sheen.to_array().map(|c| c as f64 * e),
+        ),
+    ];
+    let settings = RenderSettings {
+        width: 8,
+        height: 8,
+        spp: 256,
+        ..Default::default()
+    };
+    for (name, material, expected) in cases {
+        let path = write_gltf(&dir, "furnace.gltf", &layered_furnace_doc(material));
+        let scene = load_scene(&path).expect("loads");
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .all(|w| !w.contains("clearcoat") && !w.contains("sheen")),
+            "{name}: {:?}",
+            scene.warnings
+        );
+        let flat = flatten(&scene.world, &path).unwrap();
+        let (mean, error) = crate::common::estimate(&flat, &settings);
+        for c in 0..3 {
+            eprintln!(
+                "{name}: {:.5} +- {:.1e} vs {:.5}",
+                mean[c], error[c], expected[c]
+            );
+            assert!(
+                error[c] < 0.005 * expected[c],
+                "{name}: error {error:?} too large to detect 1 %"
+            );
+            assert!(
+                (mean[c] - expected[c]).abs() < 4.0 * error[c] + 1e-4 * expected[c],
+                "{name}: {mean:?} +- {error:?} vs {expected:?}"
+            );
+        }
+    }
+    // The textures wavetrace does not read are named, once per file.
+    let material = layered_material(
+        0.5,
+        json!({"KHR_materials_clearcoat": {"clearcoatFactor": 1.0, "clearcoatNormalTexture": {"index": 0}},
+               "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0], "sheenColorTexture": {"index": 0}}}),
+    );
+    let path = write_gltf(&dir, "textured.gltf", &layered_furnace_doc(material));
+    let warnings = load_scene(&path).expect("loads").warnings;
+    for what in [
+        "KHR_materials_clearcoat textures",
+        "KHR_materials_sheen textures",
+    ] {
+        assert_eq!(
+            warnings.iter().filter(|w| w.contains(what)).count(),
+            1,
+            "{what}: {warnings:?}"
+        );
+    }
 }

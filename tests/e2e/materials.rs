@@ -99,6 +99,14 @@ fn out_of_range_pbr_parameters_are_refused() {
             r#"{ type = "pbr", base_color = [0.5, 0.5, 0.5], transmission = 1.0, ior = 1.0 }"#,
             "ior must be at least 1",
         ),
+        (
+            r#"{ type = "pbr", base_color = [0.5, 0.5, 0.5], clearcoat = 1.5 }"#,
+            "clearcoat must lie in [0, 1]",
+        ),
+        (
+            r#"{ type = "pbr", base_color = [0.5, 0.5, 0.5], sheen_color = [1.2, 0.0, 0.0] }"#,
+            "sheen_color components must lie in [0, 1]",
+        ),
     ] {
         let error = load_scene_str(&path, &box_with(material))
             .err()

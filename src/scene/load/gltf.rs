@@ -6,7 +6,7 @@
 //! node space and the node's world [`Transform`]; cameras become [`Camera`]s in world space;
 //! `KHR_lights_punctual` lights become [`PunctualLight`]s. Every material becomes
 //! [`Material::MetallicRoughness`] with the file's factors (and `KHR_materials_specular`,
-//! `_ior`, `_transmission`), its textures a [`MaterialTextures`] (with `TANGENT` data as
+//! `_ior`, `_transmission`, `_clearcoat`, `_sheen`), its textures a [`MaterialTextures`] (with `TANGENT` data as
 //! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
 //! documents the mapping.
 
@@ -132,6 +132,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             specular_color: Rgb::ONE,
             ior: 1.5,
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         },
         emitter: None,
         textures: MaterialTextures::default(),
@@ -630,6 +634,34 @@ fn import_material(
             .filter(|i| i.is_finite() && *i >= 1.0)
             .unwrap_or(1.5),
         transmission: unit(m.transmission().map_or(0.0, |t| t.transmission_factor())),
+        clearcoat: unit(extension_number(
+            m,
+            "KHR_materials_clearcoat",
+            "clearcoatFactor",
+        )),
+        clearcoat_roughness: unit(extension_number(
+            m,
+            "KHR_materials_clearcoat",
+            "clearcoatRoughnessFactor",
+        )),
+        sheen_color: match m.extension_value("KHR_materials_sheen") {
+            Some(sheen) => {
+                let channel = |i: usize| {
+                    unit(
+                        sheen["sheenColorFactor"][i]
+                            .as_f64()
+                            .map_or(0.0, |x| x as f32),
+                    )
+                };
+                Rgb::new(channel(0), channel(1), channel(2))
+            }
+            None => Rgb::ZERO,
+        },
+        sheen_roughness: unit(extension_number(
+            m,
+            "KHR_materials_sheen",
+            "sheenRoughnessFactor",
+        )),
     };
     let strength = m.emissive_strength().unwrap_or(1.0);
     let radiance = Rgb::from(m.emissive_factor()) * strength;
@@ -698,6 +730,13 @@ fn import_material(
         },
         uv_set,
     }
+}
+
+/// A number of a material extension (glTF's default 0 when absent; callers clamp it).
+fn extension_number(m: &gltf::Material, extension: &str, key: &str) -> f32 {
+    m.extension_value(extension)
+        .and_then(|e| e[key].as_f64())
+        .map_or(0.0, |x| x as f32)
 }
 
 /// The texture index of a `KHR_materials_pbrSpecularGlossiness` diffuse texture.

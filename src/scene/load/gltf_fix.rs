@@ -235,7 +235,54 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "material",
     );
+    let with_keys = |extension: &str, keys: &[&str]| {
+        materials
+            .iter()
+            .filter(|m| {
+                m.extension_value(extension)
+                    .is_some_and(|e| keys.iter().any(|k| e.get(*k).is_some()))
+            })
+            .count()
+    };
+    count(
+        "KHR_materials_clearcoat textures (clearcoatTexture, clearcoatRoughnessTexture, \
+         clearcoatNormalTexture) are ignored: the factors apply everywhere",
+        with_keys(
+            "KHR_materials_clearcoat",
+            &[
+                "clearcoatTexture",
+                "clearcoatRoughnessTexture",
+                "clearcoatNormalTexture",
+            ],
+        ),
+        "material",
+    );
+    count(
+        "KHR_materials_sheen textures (sheenColorTexture, sheenRoughnessTexture) are ignored: \
+         the factors apply everywhere",
+        with_keys(
+            "KHR_materials_sheen",
+            &["sheenColorTexture", "sheenRoughnessTexture"],
+        ),
+        "material",
+    );
+    count(
+        "KHR_materials_clearcoat does not darken emission (the specification scales it by \
+         1 - clearcoat * Fresnel)",
+        materials
+            .iter()
+            .filter(|m| {
+                m.emissive_factor().iter().any(|&e| e > 0.0)
+                    && m.extension_value("KHR_materials_clearcoat")
+                        .and_then(|e| e["clearcoatFactor"].as_f64())
+                        .is_some_and(|c| c > 0.0)
+            })
+            .count(),
+        "material",
+    );
     let handled = [
+        "KHR_materials_clearcoat",
+        "KHR_materials_sheen",
         "KHR_materials_emissive_strength",
         "KHR_materials_ior",
         "KHR_materials_specular",

@@ -345,6 +345,10 @@ fn import_material(
                 .filter(|&n| n.is_finite() && n >= 1.0)
                 .unwrap_or(1.5),
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         }
     };
     let emitter = rgb(m.emissive)

@@ -173,6 +173,14 @@ enum MaterialDef {
         ior: f32,
         #[serde(default)]
         transmission: f32,
+        #[serde(default)]
+        clearcoat: f32,
+        #[serde(default)]
+        clearcoat_roughness: f32,
+        #[serde(default)]
+        sheen_color: [f32; 3],
+        #[serde(default)]
+        sheen_roughness: f32,
     },
 }
 
@@ -415,21 +423,40 @@ fn material_from_def(def: &MaterialDef) -> std::result::Result<Material, String>
             specular_color,
             ior,
             transmission,
+            clearcoat,
+            clearcoat_roughness,
+            sheen_color,
+            sheen_roughness,
         } => {
             finite(&base_color, "base_color")?;
             finite(&specular_color, "specular_color")?;
+            finite(&sheen_color, "sheen_color")?;
             finite(
-                &[metallic, roughness, specular, ior, transmission],
+                &[
+                    metallic,
+                    roughness,
+                    specular,
+                    ior,
+                    transmission,
+                    clearcoat,
+                    clearcoat_roughness,
+                    sheen_roughness,
+                ],
                 "pbr parameters",
             )?;
-            if base_color.iter().any(|&a| !(0.0..=1.0).contains(&a)) {
-                return Err("base_color components must lie in [0, 1]".into());
+            for (colour, what) in [(base_color, "base_color"), (sheen_color, "sheen_color")] {
+                if colour.iter().any(|&a| !(0.0..=1.0).contains(&a)) {
+                    return Err(format!("{what} components must lie in [0, 1]"));
+                }
             }
             for (value, what) in [
                 (metallic, "metallic"),
                 (roughness, "roughness"),
                 (specular, "specular"),
                 (transmission, "transmission"),
+                (clearcoat, "clearcoat"),
+                (clearcoat_roughness, "clearcoat_roughness"),
+                (sheen_roughness, "sheen_roughness"),
             ] {
                 if !(0.0..=1.0).contains(&value) {
                     return Err(format!("{what} must lie in [0, 1], got {value}"));
@@ -451,6 +478,10 @@ fn material_from_def(def: &MaterialDef) -> std::result::Result<Material, String>
                 specular_color: Vec3::from(specular_color),
                 ior,
                 transmission,
+                clearcoat,
+                clearcoat_roughness,
+                sheen_color: Vec3::from(sheen_color),
+                sheen_roughness,
             }
         }
     })
