@@ -110,6 +110,7 @@ impl Bsdf {
         let ior = match *self {
             Bsdf::Dielectric { ior, .. } => ior,
             Bsdf::MetallicRoughness(params) => params.ior,
+            Bsdf::Layered(layered) => layered.base.ior,
             Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } => return 1.0,
         };
         if wo.z * wi.z >= 0.0 {
