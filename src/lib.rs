@@ -59,6 +59,7 @@ pub use wavefront::{Flow, Progress, render};
 #[doc(hidden)]
 pub mod internals {
     pub use crate::bsdf::Bsdf;
+    pub use crate::bsdf::sheen::albedo as sheen_albedo;
     pub use crate::camera::PinholeCamera;
     pub use crate::geometry::Shape;
     pub use crate::lights::LightTable;

@@ -1201,7 +1201,7 @@ fn clearcoat_and_sheen_from_gltf_render_their_closed_form_albedos() {
     let dir = scratch("layers");
     let fc = 0.04 + 0.96 * 0.5f64.powi(5);
     let sheen = Rgb::new(1.0, 0.5, 0.25);
-    let e = wavetrace::bsdf::sheen::albedo(0.5, 0.6) as f64;
+    let e = wavetrace::internals::sheen_albedo(0.5, 0.6) as f64;
     let cases = [
         (
             "coat over black",

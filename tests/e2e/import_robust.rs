@@ -480,6 +480,10 @@ fn spec_gloss_converts_and_required_fallback_extensions_load() {
             specular_color: Rgb::ONE,
             ior: 1.5,
             transmission: 0.0,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
+            sheen_color: Rgb::ZERO,
+            sheen_roughness: 0.0,
         }
     );
 }
