@@ -138,7 +138,7 @@ impl Doc {
                     .map(|(file, _)| json!({"uri": format!("{name}-{file}")}))
                     .collect::<Vec<_>>()
             );
-            doc["samplers"] = json!([{"magFilter": 9728, "minFilter": 9728}]);
+            doc["samplers"] = json!([{"magFilter": 9728}]);
             doc["textures"] = json!(
                 (0..n)
                     .map(|i| json!({"source": i, "sampler": 0}))
