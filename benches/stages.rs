@@ -136,7 +136,7 @@ fn prepare_sub_batch(
         &mut paths,
         &mut rays,
     );
-    intersect_closest(scene, &rays, &mut hits);
+    intersect_closest(scene, &rays, &paths.rng_key, 0, &mut hits);
     let defaults = wavetrace::RenderSettings::default();
     let params = ShadeParams {
         bounce: 0,
@@ -168,7 +168,7 @@ fn prepare_sub_batch(
 }
 
 /// Which rays of a sub-batch an intersect benchmark casts.
-type RaysOf = fn(&Prepared) -> &RayBatch;
+type RaysOf = fn(&Prepared) -> (&RayBatch, &Vec<u64>);
 
 /// How many of something the sub-batches of `batch` have together.
 fn total(batch: &[Prepared], count: impl Fn(&Prepared) -> usize) -> u64 {
@@ -204,17 +204,18 @@ fn stages(c: &mut Criterion) {
 
         let mut g = c.benchmark_group("intersect");
         g.sample_size(20);
-        let rays: [(&str, RaysOf); 2] = [
-            ("camera", |p| &p.camera_rays),
-            ("bounce", |p| &p.bounce_rays),
+        let rays: [(&str, RaysOf, u32); 2] = [
+            ("camera", |p| (&p.camera_rays, &p.camera_paths.rng_key), 0),
+            ("bounce", |p| (&p.bounce_rays, &p.shadow_paths.rng_key), 1),
         ];
-        for (kind, rays) in rays {
-            g.throughput(Throughput::Elements(total(&batch, |p| rays(p).len())));
+        for (kind, rays, bounce) in rays {
+            g.throughput(Throughput::Elements(total(&batch, |p| rays(p).0.len())));
             g.bench_function(format!("{name}_{kind}"), |b| {
                 let mut hits = HitBatch::default();
                 b.iter(|| {
                     for p in &batch {
-                        intersect_closest(scene, rays(p), &mut hits);
+                        let (rays, keys) = rays(p);
+                        intersect_closest(scene, rays, keys, bounce, &mut hits);
                     }
                 })
             });
@@ -273,7 +274,7 @@ fn stages(c: &mut Criterion) {
                 },
                 |paths| {
                     for (p, paths) in batch.iter().zip(paths) {
-                        black_box(trace_shadow_rays(scene, &p.shadows, paths));
+                        black_box(trace_shadow_rays(scene, &p.shadows, 0, paths));
                     }
                 },
                 BatchSize::LargeInput,

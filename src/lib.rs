@@ -27,6 +27,7 @@
 #![forbid(unsafe_code)]
 
 pub(crate) mod accel;
+pub(crate) mod alpha;
 pub(crate) mod bsdf;
 pub(crate) mod camera;
 pub mod error;

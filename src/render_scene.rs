@@ -9,6 +9,7 @@ use crate::accel::build::Bvh4;
 use crate::accel::leaf_prims::{LeafPrim, closest_in_leaf, closest_in_node};
 use crate::accel::occluders::Occluders;
 use crate::accel::ray_batches;
+use crate::alpha::{AlphaRecord, RayKey};
 use crate::bsdf::Bsdf;
 use crate::flatten::FlattenTimes;
 use crate::geometry::Shape;
@@ -47,6 +48,14 @@ pub struct RenderScene {
     /// Tangents of the three vertices per slot (world space, `w` = handedness, see
     /// [`VertexTangents`]); empty unless some material has a normal map.
     pub(crate) vertex_tangents: Vec<[Vec4; 3]>,
+    /// Linear RGBA colours of the three vertices per slot (white where the mesh has none,
+    /// see [`VertexColors`](crate::scene::VertexColors)); empty unless some mesh has them.
+    pub(crate) vertex_colors: Vec<[Vec4; 3]>,
+    /// Per slot, its index into `alpha_records`, or [`crate::alpha::OPAQUE`]; empty when
+    /// every primitive is opaque.
+    pub(crate) alpha_of_slot: Vec<u32>,
+    /// How the alpha-tested meshes are covered.
+    pub(crate) alpha_records: Vec<AlphaRecord>,
     /// Material index per slot, into `materials`.
     pub(crate) material: Vec<u32>,
     /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
@@ -155,6 +164,7 @@ impl RenderScene {
     }
 
     /// Closest primitive along the ray within `[0, t_max]`: its BVH slot and distance.
+    /// (BLEND coverage, if any, as for the first ray of a path of key 0.)
     #[inline]
     pub fn closest_hit(
         &self,
@@ -162,6 +172,20 @@ impl RenderScene {
         origin: Vec3A,
         direction: Vec3A,
         t_max: f32,
+    ) -> Option<(u32, f32)> {
+        self.closest_covered_hit(stack, origin, direction, t_max, RayKey::default())
+    }
+
+    /// [`Self::closest_hit`] for the ray `key` of a path: hits on alpha-tested primitives
+    /// that do not cover the point (see [`crate::alpha`]) are passed through.
+    #[inline]
+    pub(crate) fn closest_covered_hit(
+        &self,
+        stack: &mut TraversalStack,
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+        key: RayKey,
     ) -> Option<(u32, f32)> {
         let prims = &self.leaf_prims;
         match &self.closest_hit_path {
@@ -188,6 +212,28 @@ impl RenderScene {
                     closest_in_leaf(prims, first, count, origin, direction, t_max)
                 },
             ),
+            ClosestHitPath::AlphaTested => {
+                let alpha = &self.alpha_of_slot;
+                self.bvh.closest_hit_by_leaf(
+                    stack,
+                    origin,
+                    direction,
+                    t_max,
+                    |first, count, t_max| {
+                        let mut best = (u32::MAX, t_max);
+                        for slot in first..first + count {
+                            let t = prims[slot as usize].hit_t(origin, direction, best.1);
+                            if t < best.1
+                                && (alpha[slot as usize] == crate::alpha::OPAQUE
+                                    || self.covers(slot, origin, direction, key))
+                            {
+                                best = (slot, t);
+                            }
+                        }
+                        best
+                    },
+                )
+            }
         }
     }
 
@@ -201,6 +247,18 @@ impl RenderScene {
         t_max: f32,
     ) -> bool {
         let prims = &self.leaf_prims;
+        if !self.alpha_of_slot.is_empty() {
+            let key = RayKey::default();
+            return self
+                .bvh
+                .any_hit(stack, origin, direction, t_max, |slot, t_max| {
+                    let t = prims[slot as usize].hit_t(origin, direction, t_max);
+                    let covered = t == f32::INFINITY
+                        || self.alpha_of_slot[slot as usize] == crate::alpha::OPAQUE
+                        || self.covers(slot, origin, direction, key);
+                    if covered { t } else { f32::INFINITY }
+                });
+        }
         self.bvh
             .any_hit(stack, origin, direction, t_max, |slot, t_max| {
                 prims[slot as usize].hit_t(origin, direction, t_max)
@@ -210,8 +268,37 @@ impl RenderScene {
     /// Occlusion of up to [`PACKET_SIZE`] shadow rays from one origin: bit `k` is set when
     /// segment `k` of the packet is blocked. For segments between points of the scene (see
     /// [`crate::accel::occluders`]): the triangles that bound the scene are left out.
+    /// (BLEND coverage, if any, as for the shadow rays of a path of key 0.)
     #[inline]
     pub fn occluded_packet(&self, stack: &mut TraversalStack, packet: &Packet) -> u32 {
+        self.occluded_covered_packet(stack, packet, RayKey::default())
+    }
+
+    /// [`Self::occluded_packet`] for the shadow rays of a path: ray `k` of the packet is ray
+    /// `key.ray + k` of the bounce. Scenes with alpha-tested primitives pass each blocking
+    /// candidate on a flagged slot through the coverage test; others run the opaque walk.
+    #[inline]
+    pub(crate) fn occluded_covered_packet(
+        &self,
+        stack: &mut TraversalStack,
+        packet: &Packet,
+        key: RayKey,
+    ) -> u32 {
+        if self.alpha_of_slot.is_empty() {
+            self.occluded_packet_walk::<false>(stack, packet, key)
+        } else {
+            self.occluded_packet_walk::<true>(stack, packet, key)
+        }
+    }
+
+    /// The walk of [`Self::occluded_covered_packet`], with the coverage test if `ALPHA`.
+    #[inline(always)]
+    fn occluded_packet_walk<const ALPHA: bool>(
+        &self,
+        stack: &mut TraversalStack,
+        packet: &Packet,
+        key: RayKey,
+    ) -> u32 {
         let (bvh, prims) = match &self.occluders {
             Some(o) => (&o.bvh, &o.leaf_prims),
             None => (&self.bvh, &self.leaf_prims),
@@ -250,6 +337,21 @@ impl RenderScene {
                         {
                             blocked |= 1 << k;
                         }
+                    }
+                }
+            }
+            if ALPHA && blocked != 0 && self.alpha_of_slot[slot as usize] != crate::alpha::OPAQUE {
+                // (No occluders' tree in these scenes: `slot` is the scene's slot.)
+                let mut candidates: u32 = blocked;
+                while candidates != 0 {
+                    let k = candidates.trailing_zeros();
+                    candidates &= candidates - 1;
+                    let ray = RayKey {
+                        ray: key.ray + k,
+                        ..key
+                    };
+                    if !self.covers(slot, origin, directions[k as usize], ray) {
+                        blocked &= !(1 << k);
                     }
                 }
             }

@@ -80,10 +80,34 @@ pub struct Texture {
     height: u32,
     /// Row-major texels, row 0 at the top (`v = 0`).
     texels: Vec<Rgb>,
+    /// Row-major alpha (coverage, linear), kept only when some texel is not opaque: empty
+    /// means opaque everywhere.
+    alpha: Vec<f32>,
     /// Wrap modes along `u` and `v`.
     pub wrap: [Wrap; 2],
     /// Filter used for every lookup (no mipmapping: a path tracer supersamples anyway).
     pub filter: Filter,
+}
+
+/// A stored alpha value (8 or 16 bits) in [0, 1]; alpha is never sRGB-encoded.
+trait AlphaValue: Copy {
+    fn unit(self) -> f32;
+}
+
+impl AlphaValue for u8 {
+    fn unit(self) -> f32 {
+        self as f32 / 255.0
+    }
+}
+
+impl AlphaValue for u16 {
+    fn unit(self) -> f32 {
+        self as f32 / 65535.0
+    }
+}
+
+fn alpha_of<T: AlphaValue>(x: T) -> f32 {
+    x.unit()
 }
 
 /// A stored value in [0, 1] to linear.
@@ -112,6 +136,7 @@ impl Texture {
                 width,
                 height,
                 texels,
+                alpha: Vec::new(),
                 wrap: [Wrap::Repeat; 2],
                 filter: Filter::Linear,
             },
@@ -119,7 +144,7 @@ impl Texture {
     }
 
     /// A texture from sRGB-encoded 8-bit data with `channels` bytes per texel (1: grey,
-    /// 2: grey + alpha, 3: RGB, 4: RGBA; alpha is ignored).
+    /// 2: grey + alpha, 3: RGB, 4: RGBA; alpha, always linear, is kept if not all opaque).
     pub fn from_srgb8(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
         Self::from_bytes8(width, height, channels, bytes, Encoding::Srgb)
     }
@@ -169,7 +194,7 @@ impl Texture {
         (sum / self.texels.len() as f64).as_vec3()
     }
 
-    fn from_encoded<T: Copy>(
+    fn from_encoded<T: AlphaValue>(
         width: u32,
         height: u32,
         channels: usize,
@@ -187,7 +212,31 @@ impl Texture {
                 _ => Rgb::new(decode(t[0]), decode(t[1]), decode(t[2])),
             })
             .collect();
-        Self::new(width, height, texels)
+        let mut texture = Self::new(width, height, texels)?;
+        if channels % 2 == 0 {
+            let alpha: Vec<f32> = data
+                .chunks_exact(channels)
+                .map(|t| alpha_of(t[channels - 1]))
+                .collect();
+            if alpha.iter().any(|&a| a < 1.0) {
+                texture.alpha = alpha;
+            }
+        }
+        Some(texture)
+    }
+
+    /// Whether some texel is not opaque.
+    pub fn has_alpha(&self) -> bool {
+        !self.alpha.is_empty()
+    }
+
+    /// The filtered alpha (coverage) at texture coordinate `uv`; 1 for an opaque texture.
+    #[inline]
+    pub fn lookup_alpha(&self, uv: Vec2) -> f32 {
+        if self.alpha.is_empty() {
+            return 1.0;
+        }
+        self.filtered(uv, |i, j| self.alpha[j * self.width as usize + i])
     }
 
     /// Width and height in texels.
@@ -198,17 +247,26 @@ impl Texture {
     /// The filtered colour at texture coordinate `uv`.
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Rgb {
+        self.filtered(uv, |i, j| self.texel(i, j))
+    }
+
+    /// The value of `texel(i, j)` filtered at `uv` with the texture's sampler.
+    #[inline]
+    fn filtered<T>(&self, uv: Vec2, texel: impl Fn(usize, usize) -> T) -> T
+    where
+        T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+    {
         let (w, h) = (self.width as i64, self.height as i64);
         let x = uv.x * w as f32;
         let y = uv.y * h as f32;
         if !(x.is_finite() && y.is_finite()) {
-            return self.texel(0, 0);
+            return texel(0, 0);
         }
         match self.filter {
             Filter::Nearest => {
                 let i = wrap_index(x.floor() as i64, w, self.wrap[0]);
                 let j = wrap_index(y.floor() as i64, h, self.wrap[1]);
-                self.texel(i, j)
+                texel(i, j)
             }
             Filter::Linear => {
                 let (xs, ys) = (x - 0.5, y - 0.5);
@@ -219,8 +277,8 @@ impl Texture {
                 let i1 = wrap_index(x0 + 1, w, self.wrap[0]);
                 let j0 = wrap_index(y0, h, self.wrap[1]);
                 let j1 = wrap_index(y0 + 1, h, self.wrap[1]);
-                let top = self.texel(i0, j0) * (1.0 - fx) + self.texel(i1, j0) * fx;
-                let bottom = self.texel(i0, j1) * (1.0 - fx) + self.texel(i1, j1) * fx;
+                let top = texel(i0, j0) * (1.0 - fx) + texel(i1, j0) * fx;
+                let bottom = texel(i0, j1) * (1.0 - fx) + texel(i1, j1) * fx;
                 top * (1.0 - fy) + bottom * fy
             }
         }
@@ -350,6 +408,27 @@ mod tests {
         let mid = t.lookup(Vec2::new(0.5, 0.25));
         assert!((mid - Rgb::splat(0.5)).abs().max_element() < 1e-6);
         assert!((t.lookup(Vec2::new(0.5, 0.5)) - Rgb::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn alpha_is_kept_linear_only_when_some_texel_is_not_opaque() {
+        let opaque = Texture::from_srgb8(2, 1, 4, &[9, 9, 9, 255, 0, 0, 0, 255]).unwrap();
+        assert!(!opaque.has_alpha());
+        assert_eq!(opaque.lookup_alpha(Vec2::new(0.25, 0.5)), 1.0);
+        let mut t = Texture::from_srgb8(2, 1, 2, &[255, 255, 255, 51]).unwrap();
+        t.wrap = [Wrap::ClampToEdge; 2];
+        assert!(t.has_alpha());
+        assert_eq!(t.lookup_alpha(Vec2::new(0.25, 0.5)), 1.0);
+        assert_eq!(
+            t.lookup_alpha(Vec2::new(0.75, 0.5)),
+            0.2,
+            "alpha is not sRGB-decoded"
+        );
+        assert!(
+            (t.lookup_alpha(Vec2::new(0.5, 0.5)) - 0.6).abs() < 1e-6,
+            "bilinear"
+        );
+        assert_eq!(t.lookup(Vec2::new(0.75, 0.5)), Rgb::ONE, "colour unchanged");
     }
 
     #[test]

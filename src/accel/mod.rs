@@ -40,12 +40,19 @@ pub enum ClosestHitPath {
     NodeTriangles(Vec<NodeTriangles>),
     /// The tree, leaf by leaf, leaves of two to four triangles tested four wide (large scenes).
     Leaves,
+    /// The tree, primitive by primitive, with the alpha-coverage test (an any-hit filter,
+    /// [`crate::RenderScene`]'s `covers`) on candidate hits of flagged slots: scenes with some
+    /// alpha-tested (MASK or BLEND) primitive. The other paths never test coverage.
+    AlphaTested,
 }
 
 impl ClosestHitPath {
     /// The fastest path the scene allows: `prims` are the leaf records in slot order, `bvh`
-    /// the tree over them.
-    pub fn choose(prims: &[LeafPrim], bvh: &Bvh4) -> Self {
+    /// the tree over them, `alpha_tested` whether some primitive has alpha coverage.
+    pub fn choose(prims: &[LeafPrim], bvh: &Bvh4, alpha_tested: bool) -> Self {
+        if alpha_tested {
+            return ClosestHitPath::AlphaTested;
+        }
         if let Some(flat) = FlatPrimitives::new(prims) {
             return ClosestHitPath::Flat(flat);
         }

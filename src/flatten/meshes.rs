@@ -5,10 +5,15 @@
 use super::lights::validate_emitter;
 use super::materials::{self, MaterialTable};
 use super::{Attributes, Columns, Group, Primitives};
+use crate::alpha::{self, AlphaRecord};
 use crate::error::{Error, Result};
 use crate::geometry::{Shape, TriangleGeom};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
-use crate::scene::{Emitter, Material, MaterialTextures, Mesh, Name, Transform, VertexTangents};
+use crate::scene::{
+    AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, Transform, VertexColors,
+    VertexTangents,
+};
+use crate::texture::TextureRef;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -25,16 +30,17 @@ pub(super) fn flatten_meshes(
         columns,
         warnings,
         attributes,
+        alpha_records,
     } = prims;
     let attributes = *attributes;
-    for (name, transform, mesh, material, textures, tangents, emitter) in world
+    for (name, transform, mesh, (material, alpha), textures, (tangents, colors), emitter) in world
         .query::<(
             Option<&Name>,
             Option<&Transform>,
             &Mesh,
-            &Material,
+            (&Material, Option<&AlphaCoverage>),
             Option<&MaterialTextures>,
-            Option<&VertexTangents>,
+            (Option<&VertexTangents>, Option<&VertexColors>),
             Option<&Emitter>,
         )>()
         .iter()
@@ -51,13 +57,50 @@ pub(super) fn flatten_meshes(
             emitter = None; // a black emission texture: nothing is emitted
         }
         let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
+        let alpha = match alpha {
+            // Light sampling would still pick the cut-out parts of an emitter.
+            Some(_) if emitter.is_some() => {
+                warnings.push(format!(
+                    "mesh '{name}': alpha coverage of an emitting surface is ignored; it is \
+                     rendered opaque"
+                ));
+                alpha::OPAQUE
+            }
+            Some(coverage) => {
+                let texture = textures
+                    .and_then(|t| t.base_color.as_ref())
+                    .filter(|slot| slot.texture.has_alpha() && !mesh.uvs.is_empty())
+                    .map_or_else(TextureRef::default, |slot| {
+                        materials.interner.intern(Some(slot))
+                    });
+                let vertex_alpha = colors.is_some_and(|c| c.0.iter().any(|c| c.w < 1.0));
+                alpha_records.push(AlphaRecord {
+                    mode: coverage.mode,
+                    factor: coverage.factor,
+                    texture,
+                    vertex_alpha,
+                });
+                alpha_records.len() as u32 - 1
+            }
+            None => alpha::OPAQUE,
+        };
         groups.push(Group {
             first: columns.shapes.len(),
             material,
             emitter,
             emission_texture,
+            alpha,
         });
-        let skipped = flatten_mesh(mesh, &transform, tangents, path, name, attributes, columns)?;
+        let vertex_attributes = (tangents, colors);
+        let skipped = flatten_mesh(
+            mesh,
+            &transform,
+            vertex_attributes,
+            path,
+            name,
+            attributes,
+            columns,
+        )?;
         if skipped > 0 {
             let kind = if emitter.is_some() { " emitting" } else { "" };
             warnings.push(format!(
@@ -71,11 +114,12 @@ pub(super) fn flatten_meshes(
 /// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
 /// that `attributes` asks for, zero where the mesh has none); returns how many degenerate
 /// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
-/// with the file's tangents, `Some(None)` to make them per triangle.
+/// with the file's tangents, `Some(None)` to make them per triangle. `colors` are the mesh's
+/// vertex colours, if it has any.
 fn flatten_mesh(
     mesh: &Mesh,
     world_from_object: &crate::math::Affine3A,
-    tangents: Option<Option<&VertexTangents>>,
+    (tangents, colors): (Option<Option<&VertexTangents>>, Option<&VertexColors>),
     path: &Path,
     name: &str,
     attributes: Attributes,
@@ -95,6 +139,15 @@ fn flatten_mesh(
             path,
             at(),
             format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
+        ));
+    }
+    if let Some(VertexColors(c)) = colors
+        && c.len() != n
+    {
+        return Err(Error::input(
+            path,
+            at(),
+            format!("{} vertex colours for {n} positions", c.len()),
         ));
     }
     if let Some(bad) = mesh.positions.par_iter().position_first(|p| !p.is_finite()) {
@@ -219,6 +272,14 @@ fn flatten_mesh(
     }
     if attributes.uvs {
         extend(&mut columns.uvs, &kept_triangles, count, uvs);
+    }
+    if attributes.colors {
+        // Linear RGB; the alpha channel is coverage, not colour.
+        let colors = |t: usize| match colors {
+            Some(VertexColors(c)) => corners(t).map(|i| c[i as usize]),
+            None => [Vec4::ONE; 3],
+        };
+        extend(&mut columns.colors, &kept_triangles, count, colors);
     }
     if attributes.tangents {
         // Tangents: the file's (the linear part carries them; a mirroring transform flips

@@ -17,11 +17,12 @@ use crate::accel::ClosestHitPath;
 use crate::accel::build::{self as bvh, Bvh4};
 use crate::accel::leaf_prims::LeafPrim;
 use crate::accel::occluders;
+use crate::alpha::AlphaRecord;
 use crate::error::{Error, Result};
 use crate::geometry::Shape;
 use crate::math::{Rgb, Vec2, Vec3, Vec4};
 use crate::render_scene::{NO_EMITTER, RenderScene};
-use crate::scene::{Emitter, MaterialTextures, Mesh};
+use crate::scene::{Emitter, MaterialTextures, Mesh, VertexColors};
 use crate::texture::TextureRef;
 use materials::MaterialTable;
 use rayon::prelude::*;
@@ -48,11 +49,19 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
 
     // Lights, and the primitives that can block shadow rays (which depend on the lights).
     let delta_lights = lights::punctual_lights(world, bvh.bounds(), path)?;
-    let occluders = occluders::occluders(&prims.columns.shapes, &delta_lights);
+    // Shadow rays in scenes with alpha-tested primitives walk the whole tree: its slots are
+    // the ones flagged for the coverage test.
+    let alpha_tested = !prims.alpha_records.is_empty();
+    let occluders = if alpha_tested {
+        None
+    } else {
+        occluders::occluders(&prims.columns.shapes, &delta_lights)
+    };
     let lights = lights::scene_lights(&prims, delta_lights);
 
     // Per-slot columns.
-    let (material, emitter) = slot_materials_and_lights(&prims.groups, &lights.first_light, &order);
+    let (material, emitter, alpha_of_slot) =
+        slot_materials_lights_and_alpha(&prims.groups, &lights.first_light, &order, alpha_tested);
     // One record per slot, which also gives back the shape (see `RenderScene::shape`): a
     // second array of the shapes cost 84 MB and 20 ms at 1.3M triangles.
     let leaf_prims: Vec<LeafPrim> = order
@@ -63,13 +72,21 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
         columns,
         warnings,
         attributes,
+        alpha_records,
         ..
     } = prims;
     Ok(RenderScene {
-        closest_hit_path: ClosestHitPath::choose(&leaf_prims, &bvh),
+        closest_hit_path: ClosestHitPath::choose(&leaf_prims, &bvh, alpha_tested),
+        alpha_of_slot,
+        alpha_records,
         leaf_prims,
         vertex_normals: Columns::ordered(&columns.normals, &order),
         vertex_uvs: Columns::ordered(&columns.uvs, &order),
+        vertex_colors: if attributes.colors {
+            Columns::ordered(&columns.colors, &order)
+        } else {
+            Vec::new()
+        },
         vertex_tangents: if attributes.tangents {
             Columns::ordered(&columns.tangents, &order)
         } else {
@@ -116,6 +133,8 @@ struct Group {
     emitter: Option<Emitter>,
     /// The emitter's texture and the texture's mean.
     emission_texture: Option<(TextureRef, Rgb)>,
+    /// Index into [`Primitives::alpha_records`], or [`crate::alpha::OPAQUE`].
+    alpha: u32,
 }
 
 /// Per-primitive columns in flattening order (before BVH ordering). A vertex-attribute
@@ -127,6 +146,8 @@ struct Columns {
     normals: Vec<[Vec3; 3]>,
     uvs: Vec<[Vec2; 3]>,
     tangents: Vec<[Vec4; 3]>,
+    /// Linear RGBA vertex colours; white for primitives without.
+    colors: Vec<[Vec4; 3]>,
 }
 
 /// Which vertex attributes some primitive of the scene has (and so which [`Columns`] are filled).
@@ -135,6 +156,8 @@ struct Attributes {
     normals: bool,
     uvs: bool,
     tangents: bool,
+    /// Vertex colours (some mesh has [`VertexColors`]).
+    colors: bool,
 }
 
 impl Columns {
@@ -149,6 +172,9 @@ impl Columns {
         }
         if attributes.tangents {
             self.tangents.push([Vec4::ZERO; 3]);
+        }
+        if attributes.colors {
+            self.colors.push([Vec4::ONE; 3]);
         }
     }
 
@@ -175,6 +201,8 @@ struct Primitives {
     warnings: Vec<String>,
     /// Which vertex attributes the scene has.
     attributes: Attributes,
+    /// How the alpha-tested groups are covered.
+    alpha_records: Vec<AlphaRecord>,
 }
 
 impl Primitives {
@@ -184,6 +212,7 @@ impl Primitives {
             columns: Columns::default(),
             warnings: Vec::new(),
             attributes,
+            alpha_records: Vec::new(),
         }
     }
 }
@@ -199,6 +228,7 @@ impl Attributes {
             normals: world.query::<&Mesh>().iter().any(|m| !m.normals.is_empty()),
             uvs: world.query::<&Mesh>().iter().any(|m| !m.uvs.is_empty()),
             tangents: normal_mapped,
+            colors: world.query::<&VertexColors>().iter().next().is_some(),
         }
     }
 }
@@ -218,15 +248,16 @@ fn build_bvh(shapes: &[Shape], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
     })
 }
 
-/// Per slot (BVH order `order`), the material index and the light index (or [`NO_EMITTER`])
-/// of its primitive.
-fn slot_materials_and_lights(
+/// Per slot (BVH order `order`), the material index, the light index (or [`NO_EMITTER`])
+/// and, if `alpha_tested`, the alpha record (or [`crate::alpha::OPAQUE`]) of its primitive.
+fn slot_materials_lights_and_alpha(
     groups: &[Group],
     first_light: &[u32],
     order: &[u32],
-) -> (Vec<u32>, Vec<u32>) {
+    alpha_tested: bool,
+) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
     let group_of = |prim: u32| groups.partition_point(|g| g.first <= prim as usize) - 1;
-    order
+    let (material, emitter) = order
         .par_iter()
         .map(|&prim| {
             let g = group_of(prim);
@@ -236,5 +267,14 @@ fn slot_materials_and_lights(
             };
             (groups[g].material, light)
         })
-        .unzip()
+        .unzip();
+    let alpha = if alpha_tested {
+        order
+            .par_iter()
+            .map(|&p| groups[group_of(p)].alpha)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    (material, emitter, alpha)
 }

@@ -69,6 +69,7 @@ pub(super) fn flatten_spheres(
             material,
             emitter,
             emission_texture: None,
+            alpha: crate::alpha::OPAQUE,
         });
         columns.push_plain(Shape::Sphere(geom), attributes);
     }

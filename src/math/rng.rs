@@ -64,6 +64,19 @@ pub fn uniform(key: u64, bounce: u32, dimension: u32) -> f32 {
     unit_float(bits(key, bounce, dimension), 40, 24)
 }
 
+/// A uniform number in [0, 1) for the alpha coverage of primitive `slot` met by ray `ray` of
+/// `bounce` of the path with key `key` (ray 0: the bounce's ray; 1 + k: its shadow ray k).
+/// Its own stream (a salted key), so that it is independent of the path's other numbers.
+#[inline]
+pub fn coverage_uniform(key: u64, bounce: u32, ray: u32, slot: u32) -> f32 {
+    const ALPHA_SALT: u64 = 0xA1FA_C0DE_5EED_0001;
+    unit_float(
+        mix64(bits(key ^ ALPHA_SALT, bounce, ray) ^ slot as u64),
+        40,
+        24,
+    )
+}
+
 /// Three uniform numbers from the one hash of `dimension` of `bounce`, for light samples:
 /// the first (which light) with 24 bits, the other two (where on it) with 20 bits each.
 #[inline]

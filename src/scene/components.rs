@@ -167,6 +167,36 @@ impl MaterialTextures {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexTangents(pub Vec<Vec4>);
 
+/// How the alpha of a surface covers it (glTF `alphaMode` MASK or BLEND; OPAQUE surfaces
+/// have no such component). The coverage at a point is `factor` x the base-colour texture's
+/// alpha x the vertex colour's alpha.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaCoverage {
+    /// MASK or BLEND.
+    pub mode: AlphaMode,
+    /// The base colour factor's alpha, in [0, 1].
+    pub factor: f32,
+}
+
+/// See [`AlphaCoverage`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    /// Covered where the coverage is at least `cutoff` (glTF `alphaCutoff`, default 0.5).
+    Mask {
+        /// The threshold.
+        cutoff: f32,
+    },
+    /// Covered with probability equal to the coverage (stochastic transparency): a path
+    /// tracer's unbiased estimate of a partly transparent surface.
+    Blend,
+}
+
+/// Per-vertex colours of the entity's [`Mesh`] (glTF `COLOR_0`, OBJ `v x y z r g b`), linear
+/// RGBA: they multiply the material's base colour (albedo, tint), as glTF's base colour
+/// texture does. Alpha is 1 where the file gives RGB only.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexColors(pub Vec<Vec4>);
+
 /// A punctual (delta) light at the entity's origin, shining along the entity's local `-z`
 /// (glTF `KHR_lights_punctual`). Rays never hit it; it is reached only by next-event
 /// estimation.

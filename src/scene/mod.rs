@@ -1,6 +1,6 @@
 //! The authoring side: a scene is a `hecs::World` whose entities carry [`Transform`],
 //! [`Mesh`] or [`Sphere`], [`Material`] and optionally [`Emitter`]; one entity carries the
-//! [`Camera`]; [`MaterialTextures`], [`VertexTangents`] and [`PunctualLight`] come from
+//! [`Camera`]; [`MaterialTextures`], [`VertexTangents`], [`VertexColors`] and [`PunctualLight`] come from
 //! imported files. Loaders fill
 //! the world; `flatten` is the only reader of it on the render side (the loaders also read the
 //! worlds they build, to place imported models).
@@ -9,7 +9,7 @@ pub mod components;
 pub mod load;
 
 pub use components::{
-    Camera, Emitter, FresnelModel, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere,
-    TextureSlot, Transform, VertexTangents,
+    AlphaCoverage, AlphaMode, Camera, Emitter, FresnelModel, Material, MaterialTextures, Mesh,
+    Name, PunctualLight, Sphere, TextureSlot, Transform, VertexColors, VertexTangents,
 };
 pub use load::{Scene, load_scene, load_scene_str};

@@ -1,11 +1,19 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
+use crate::alpha::RayKey;
 use crate::math::Vec2;
 use crate::render_scene::{RenderScene, TraversalStack};
 
-/// Finds the closest hit of each ray; misses get [`NO_HIT`].
-pub fn intersect_closest(scene: &RenderScene, rays: &RayBatch, hits: &mut HitBatch) {
+/// Finds the closest hit of each ray (ray `i` of the path of random-number key
+/// `path_keys[i]`, at `bounce`: they choose BLEND coverage); misses get [`NO_HIT`].
+pub fn intersect_closest(
+    scene: &RenderScene,
+    rays: &RayBatch,
+    path_keys: &[u64],
+    bounce: u32,
+    hits: &mut HitBatch,
+) {
     let n = rays.len();
     hits.t.resize(n, 0.0);
     hits.slot.resize(n, NO_HIT);
@@ -13,8 +21,13 @@ pub fn intersect_closest(scene: &RenderScene, rays: &RayBatch, hits: &mut HitBat
     let mut stack = TraversalStack::default();
     for i in 0..n {
         let (origin, direction) = (rays.origin[i], rays.direction[i]);
+        let key = RayKey {
+            path: path_keys[i],
+            bounce,
+            ray: 0,
+        };
         let (slot, t) = scene
-            .closest_hit(&mut stack, origin, direction, f32::INFINITY)
+            .closest_covered_hit(&mut stack, origin, direction, f32::INFINITY, key)
             .unwrap_or((NO_HIT, f32::INFINITY));
         (hits.slot[i], hits.t[i]) = (slot, t);
         if slot != NO_HIT {

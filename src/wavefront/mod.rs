@@ -209,7 +209,8 @@ impl Batch<'_> {
             }
             // 2. intersect: closest hit of every ray
             timed(&mut stats.stage_time[1], || {
-                intersect::intersect_closest(self.scene, &b.rays, &mut b.hits)
+                let keys = &b.paths.rng_key;
+                intersect::intersect_closest(self.scene, &b.rays, keys, bounce, &mut b.hits)
             });
             // 3. shade: emission, shadow rays, next rays, Russian roulette
             let params = ShadeParams {
@@ -233,7 +234,7 @@ impl Batch<'_> {
             });
             // 4. shadow: occlusion, then unoccluded light is added to its path
             stats.shadow_rays += timed(&mut stats.stage_time[3], || {
-                shadow::trace_shadow_rays(self.scene, &b.shadows, &mut b.paths)
+                shadow::trace_shadow_rays(self.scene, &b.shadows, bounce, &mut b.paths)
             });
             // finished paths go to the film; survivors continue with their next rays
             timed(&mut stats.stage_time[4], || {

@@ -3,15 +3,26 @@
 //! lights, so they are traced together as packets of up to [`PACKET_SIZE`] rays.
 
 use super::batch::{PathState, ShadowBatch};
+use crate::alpha::RayKey;
 use crate::render_scene::{PACKET_SIZE, Packet, RenderScene, TraversalStack};
 
-/// Traces the shadow rays and accumulates visible contributions into the paths' radiance.
-/// Returns the number of shadow rays traced.
-pub fn trace_shadow_rays(scene: &RenderScene, shadows: &ShadowBatch, paths: &mut PathState) -> u64 {
+/// Traces the shadow rays (made at `bounce`) and accumulates visible contributions into the
+/// paths' radiance. Returns the number of shadow rays traced.
+pub fn trace_shadow_rays(
+    scene: &RenderScene,
+    shadows: &ShadowBatch,
+    bounce: u32,
+    paths: &mut PathState,
+) -> u64 {
     let per = shadows.per_path;
     let mut traced = 0;
     let mut stack = TraversalStack::default();
-    for (i, radiance) in paths.radiance.iter_mut().enumerate() {
+    let PathState {
+        radiance: path_radiance,
+        rng_key,
+        ..
+    } = paths;
+    for (i, radiance) in path_radiance.iter_mut().enumerate() {
         let count = shadows.count[i] as usize;
         let chunk = i * per..i * per + count;
         let (direction, t_max) = (
@@ -26,7 +37,12 @@ pub fn trace_shadow_rays(scene: &RenderScene, shadows: &ShadowBatch, paths: &mut
                 &direction[rays.clone()],
                 &t_max[rays.clone()],
             );
-            let occluded = scene.occluded_packet(&mut stack, &packet);
+            let key = RayKey {
+                path: rng_key[i],
+                bounce,
+                ray: 1 + first as u32,
+            };
+            let occluded = scene.occluded_covered_packet(&mut stack, &packet, key);
             // Summed in a local, in the same order: adding into the path's entry in memory
             // made every addition wait for the store of the one before.
             let mut sum = *radiance;

@@ -1,5 +1,5 @@
-//! Texture lookups at a hit, for the shade stage: base colour, metallic-roughness and normal
-//! maps change the material and shading normal; emission textures change the radiance a light
+//! Texture lookups at a hit, for the shade stage: vertex colours, base colour, metallic-roughness
+//! and normal maps change the material and shading normal; emission textures change the radiance a light
 //! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
 //! render scene; nothing allocates.
 
@@ -39,7 +39,8 @@ pub(super) fn shading_normal(scene: &RenderScene, slot: usize, b: Vec2, ng: Vec3
     if ns.dot(ng) < 0.0 { -ns } else { ns }
 }
 
-/// The material of a hit on `slot` at barycentrics `b`, with its textures applied, and the
+/// The material of a hit on `slot` at barycentrics `b`, with its vertex colour and textures
+/// applied (both multiply the base colour, as in glTF), and the
 /// shading normal, normal-mapped if the material has a normal map. `ng` is the geometric
 /// normal, `ns` the interpolated shading normal (on `ng`'s side) and `wo` the direction back
 /// along the ray.
@@ -54,6 +55,9 @@ pub(super) fn textured_surface(
     wo: Vec3A,
 ) -> (Bsdf, Vec3A) {
     let mut bsdf = scene.materials[material];
+    if !scene.vertex_colors.is_empty() {
+        bsdf = bsdf.tinted(interpolate(scene.vertex_colors[slot], b).truncate());
+    }
     let textures = &scene.material_textures[material];
     if textures.is_empty() {
         return (bsdf, ns);

@@ -8,6 +8,7 @@
 //! command-line tests run the binary as a child, and a test that measures the whole process
 //! runs itself alone in a child process (`common::run_alone`).
 
+mod alpha;
 mod cli;
 mod cli_errors;
 mod cli_import_errors;
@@ -28,3 +29,4 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
+mod vertex_colors;

@@ -14,8 +14,8 @@ use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_fix};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
-    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, TextureSlot, Transform,
-    VertexTangents,
+    AlphaCoverage, AlphaMode, Camera, Emitter, Material, MaterialTextures, Mesh, Name,
+    PunctualLight, TextureSlot, Transform, VertexColors, VertexTangents,
 };
 use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
@@ -38,6 +38,8 @@ struct ImportedMaterial {
     textures: MaterialTextures,
     /// Texture coordinate set (`TEXCOORD_n`) the textures read, if any texture is used.
     uv_set: Option<u32>,
+    /// `alphaMode` MASK or BLEND; `None` for OPAQUE.
+    alpha: Option<AlphaCoverage>,
 }
 
 /// Decoded textures by glTF texture index and how their values are encoded.
@@ -140,6 +142,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         emitter: None,
         textures: MaterialTextures::default(),
         uv_set: None,
+        alpha: None,
     };
 
     let scene = document
@@ -188,7 +191,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     .map_or(&default_material, |i| &materials[i]);
                 primitives_seen += 1;
                 let read = read_primitive(&primitive, &mesh, imported, &buffers, path);
-                let (mesh_data, tangents) = match read {
+                let (mesh_data, tangents, colors) = match read {
                     Ok(Some(read)) => read,
                     Ok(None) => {
                         if lines_warned.insert((mesh.index(), primitive.index())) {
@@ -222,6 +225,12 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 }
                 if let Some(t) = tangents {
                     world.insert_one(entity, t).expect("just spawned");
+                }
+                if let Some(c) = colors {
+                    world.insert_one(entity, c).expect("just spawned");
+                }
+                if let Some(a) = imported.alpha {
+                    world.insert_one(entity, a).expect("just spawned");
                 }
             }
         }
@@ -578,7 +587,23 @@ fn import_material(
 ) -> ImportedMaterial {
     let name = m.name().unwrap_or("unnamed");
     let pbr = m.pbr_metallic_roughness();
-    let [r, g, b, _alpha] = pbr.base_color_factor();
+    let [r, g, b, alpha_factor] = pbr.base_color_factor();
+    let alpha_factor = if alpha_factor.is_finite() {
+        alpha_factor.clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    let alpha = match m.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => None,
+        gltf::material::AlphaMode::Mask => Some(AlphaMode::Mask {
+            cutoff: m.alpha_cutoff().filter(|c| c.is_finite()).unwrap_or(0.5),
+        }),
+        gltf::material::AlphaMode::Blend => Some(AlphaMode::Blend),
+    }
+    .map(|mode| AlphaCoverage {
+        mode,
+        factor: alpha_factor,
+    });
     let base = Rgb::new(r, g, b).clamp(Rgb::ZERO, Rgb::ONE);
     // glTF 2.0 metallic-roughness as the specification defines it; `flatten` resolves the
     // exact special cases (Lambertian, smooth glass, mirror) from these values.
@@ -729,6 +754,7 @@ fn import_material(
             emissive,
         },
         uv_set,
+        alpha,
     }
 }
 
@@ -788,7 +814,7 @@ fn read_primitive(
     material: &ImportedMaterial,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<Option<(Mesh, Option<VertexTangents>)>> {
+) -> Result<Option<(Mesh, Option<VertexTangents>, Option<VertexColors>)>> {
     let mesh_name = match mesh.name() {
         Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
         None => format!("mesh {}", mesh.index()),
@@ -838,6 +864,27 @@ fn read_primitive(
                 Dimensions::Scalar,
             ),
         ];
+        if let Some(a) = primitive.get(&Semantic::Colors(0)) {
+            let normalized_int = matches!(a.data_type(), DataType::U8 | DataType::U16);
+            let type_ok = a.data_type() == DataType::F32 || (normalized_int && a.normalized());
+            if !type_ok || !matches!(a.dimensions(), Dimensions::Vec3 | Dimensions::Vec4) {
+                return Err(Error::input(
+                    path,
+                    at(),
+                    format!(
+                        "COLOR_0 accessor {} holds {:?} {:?}{}, which glTF does not allow there",
+                        a.index(),
+                        a.dimensions(),
+                        a.data_type(),
+                        if normalized_int {
+                            " (not normalized)"
+                        } else {
+                            ""
+                        }
+                    ),
+                ));
+            }
+        }
         for (accessor, what, types, dimensions) in expected {
             if let Some(a) = accessor
                 && (!types.contains(&a.data_type()) || a.dimensions() != dimensions)
@@ -886,6 +933,10 @@ fn read_primitive(
             .unwrap_or_default(),
         None => Vec::new(),
     };
+    let colors: Vec<Vec4> = reader
+        .read_colors(0)
+        .map(|it| it.into_rgba_f32().map(Vec4::from).collect())
+        .unwrap_or_default();
     let flat: Vec<u32> = match (primitive.indices(), reader.read_indices()) {
         (_, Some(indices)) => indices.into_u32().collect(),
         (None, None) => (0..n as u32).collect(), // non-indexed: consecutive triples
@@ -927,7 +978,17 @@ fn read_primitive(
     let tangents =
         (tangents.len() == n && mesh.normals.len() == n && tangents.iter().all(|t| t.is_finite()))
             .then_some(VertexTangents(tangents));
-    Ok(Some((mesh, tangents)))
+    // Colours outside [0, 1] (float accessors may hold anything) are clamped: a colour above
+    // 1 would make the surface reflect more light than it receives.
+    let colors = (colors.len() == n && colors.iter().all(|c| c.is_finite())).then(|| {
+        VertexColors(
+            colors
+                .into_iter()
+                .map(|c| c.clamp(Vec4::ZERO, Vec4::ONE))
+                .collect(),
+        )
+    });
+    Ok(Some((mesh, tangents, colors)))
 }
 
 /// A triangle strip's triangles as a list, each with the strip's alternating winding

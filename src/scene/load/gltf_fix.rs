@@ -220,14 +220,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "material",
     );
     count(
-        "alphaMode MASK and BLEND are ignored; the surfaces render opaque",
-        materials
-            .iter()
-            .filter(|m| m.alpha_mode() != gltf::material::AlphaMode::Opaque)
-            .count(),
-        "material",
-    );
-    count(
         "KHR_materials_unlit is approximated: the base colour is lit like any surface",
         materials
             .iter()
@@ -303,14 +295,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         count(&format!("{name} is ignored"), *n, "material");
     }
     let primitives: Vec<gltf::Primitive> = document.meshes().flat_map(|m| m.primitives()).collect();
-    count(
-        "vertex colours (COLOR_0) are ignored",
-        primitives
-            .iter()
-            .filter(|p| p.get(&gltf::Semantic::Colors(0)).is_some())
-            .count(),
-        "primitive",
-    );
     count(
         "KHR_materials_variants is ignored: the default materials are shown",
         primitives

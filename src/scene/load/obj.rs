@@ -11,9 +11,10 @@
 
 use super::{Scene, SceneDefaults, UpAxis, check_mesh, obj_check};
 use crate::error::{Error, Result};
-use crate::math::{Rgb, Vec2, Vec3};
+use crate::math::{Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
     Emitter, FresnelModel, Material, MaterialTextures, Mesh, Name, TextureSlot, Transform,
+    VertexColors,
 };
 use crate::texture::Texture;
 use std::collections::HashMap;
@@ -116,6 +117,16 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             .chunks_exact(2)
             .map(|t| Vec2::new(t[0], 1.0 - t[1]))
             .collect();
+        // `v x y z r g b`: tobj gives one colour per vertex (with single_index), or none.
+        let colors: Vec<Vec4> = m
+            .vertex_color
+            .chunks_exact(3)
+            .map(|c| {
+                Vec3::new(c[0], c[1], c[2])
+                    .clamp(Vec3::ZERO, Vec3::ONE)
+                    .extend(1.0)
+            })
+            .collect();
         let arities: Vec<u32> = if m.face_arities.is_empty() {
             vec![3; m.indices.len() / 3]
         } else {
@@ -173,6 +184,11 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         }
         check_mesh(path, &format!("object '{name}'"), &mesh)?;
         let entity = world.spawn((Name(name), transform, mesh, material));
+        if colors.len() == n && colors.iter().all(|c| c.is_finite()) {
+            world
+                .insert_one(entity, VertexColors(colors))
+                .expect("just spawned");
+        }
         if let Some(e) = emitter {
             world.insert_one(entity, e).expect("just spawned");
         }
