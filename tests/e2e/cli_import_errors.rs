@@ -255,7 +255,8 @@ fn gltf_cases() -> Vec<Case> {
                 d["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
             }),
             &[
-                "requires the extension 'KHR_draco_mesh_compression', which wavetrace does not support",
+                "the geometry is compressed with Draco (KHR_draco_mesh_compression), which \
+                 wavetrace cannot decode; re-export",
             ],
         ),
         case(

@@ -17,6 +17,7 @@ mod cornell;
 mod determinism;
 mod furnace;
 mod fuzz_regressions;
+mod geometry_import;
 mod import;
 mod import_robust;
 mod interrupt;

@@ -10,7 +10,7 @@
 //! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
 //! documents the mapping.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_fix};
+use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_fix, gltf_geometry};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
@@ -66,23 +66,21 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         )
     };
     for ext in &json.extensions_required {
+        if let Some(message) = gltf_geometry::compression_message(ext) {
+            return Err(Error::input(path, None, message));
+        }
         if !gltf_fix::SUPPORTED_REQUIRED.contains(&ext.as_str()) {
             return Err(Error::input(
                 path,
                 None,
                 format!(
-                    "the file requires the extension '{ext}', which wavetrace does not support{}",
-                    if ext.contains("draco")
-                        || ext.contains("meshopt")
-                        || ext.contains("quantization")
-                    {
-                        " (export without mesh compression or quantization)"
-                    } else {
-                        ""
-                    }
+                    "the file requires the extension '{ext}', which wavetrace does not support"
                 ),
             ));
         }
+    }
+    if let Some(message) = gltf_geometry::draco_without_fallback(&json) {
+        return Err(Error::input(path, None, message));
     }
     let gltf_error = |e: gltf::Error| {
         Error::input(
@@ -837,32 +835,23 @@ fn read_primitive(
             .normal
             .as_ref()
             .and_then(|_| primitive.get(&Semantic::Tangents));
-        let expected: [(Option<gltf::Accessor>, &str, &[DataType], Dimensions); 5] = [
+        let attributes: [(Option<gltf::Accessor>, &str, Dimensions); 4] = [
             (
                 primitive.get(&Semantic::Positions),
                 "POSITION",
-                &[DataType::F32],
                 Dimensions::Vec3,
             ),
             (
                 primitive.get(&Semantic::Normals),
                 "NORMAL",
-                &[DataType::F32],
                 Dimensions::Vec3,
             ),
             (
                 texture_set.and_then(|set| primitive.get(&Semantic::TexCoords(set))),
                 "TEXCOORD",
-                &[DataType::F32, DataType::U8, DataType::U16],
                 Dimensions::Vec2,
             ),
-            (tangents, "TANGENT", &[DataType::F32], Dimensions::Vec4),
-            (
-                primitive.indices(),
-                "indices",
-                &[DataType::U8, DataType::U16, DataType::U32],
-                Dimensions::Scalar,
-            ),
+            (tangents, "TANGENT", Dimensions::Vec4),
         ];
         if let Some(a) = primitive.get(&Semantic::Colors(0)) {
             let normalized_int = matches!(a.data_type(), DataType::U8 | DataType::U16);
@@ -885,26 +874,45 @@ fn read_primitive(
                 ));
             }
         }
-        for (accessor, what, types, dimensions) in expected {
-            if let Some(a) = accessor
-                && (!types.contains(&a.data_type()) || a.dimensions() != dimensions)
-            {
-                return Err(Error::input(
-                    path,
-                    at(),
+        for (accessor, what, dimensions) in attributes {
+            if let Some(a) = accessor {
+                let wrong_shape = (a.dimensions() != dimensions).then(|| {
                     format!(
                         "{what} accessor {} holds {:?} {:?}, which glTF does not allow there",
                         a.index(),
                         a.dimensions(),
                         a.data_type()
-                    ),
-                ));
+                    )
+                });
+                if let Some(message) =
+                    wrong_shape.or_else(|| gltf_geometry::check_attribute(&a, what))
+                {
+                    return Err(Error::input(path, at(), message));
+                }
             }
+        }
+        if let Some(a) = primitive.indices()
+            && (![DataType::U8, DataType::U16, DataType::U32].contains(&a.data_type())
+                || a.dimensions() != Dimensions::Scalar)
+        {
+            return Err(Error::input(
+                path,
+                at(),
+                format!(
+                    "indices accessor {} holds {:?} {:?}, which glTF does not allow there",
+                    a.index(),
+                    a.dimensions(),
+                    a.data_type()
+                ),
+            ));
         }
     }
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-    let positions: Vec<Vec3> = reader
-        .read_positions()
+    // Attributes are read here rather than by the `gltf` reader, which takes only floats for
+    // positions, normals and tangents: `KHR_mesh_quantization` allows integers.
+    let attribute = |semantic: gltf::Semantic| primitive.get(&semantic);
+    let positions: Vec<Vec3> = attribute(gltf::Semantic::Positions)
+        .and_then(|a| gltf_geometry::read_floats::<3>(&a, buffers))
         .ok_or_else(|| {
             Error::input(
                 path,
@@ -912,24 +920,24 @@ fn read_primitive(
                 "POSITION is missing, or its accessor lies outside its buffer",
             )
         })?
+        .into_iter()
         .map(Vec3::from)
         .collect();
     let n = positions.len();
-    let normals: Vec<Vec3> = reader
-        .read_normals()
-        .map(|it| it.map(Vec3::from).collect())
+    let normals: Vec<Vec3> = attribute(gltf::Semantic::Normals)
+        .and_then(|a| gltf_geometry::read_floats::<3>(&a, buffers))
+        .map(|v| v.into_iter().map(Vec3::from).collect())
         .unwrap_or_default();
-    let uvs: Vec<Vec2> = match material.uv_set {
-        Some(set) => reader
-            .read_tex_coords(set)
-            .map(|it| it.into_f32().map(Vec2::from).collect())
-            .unwrap_or_default(),
-        None => Vec::new(),
-    };
+    let uvs: Vec<Vec2> = material
+        .uv_set
+        .and_then(|set| attribute(gltf::Semantic::TexCoords(set)))
+        .and_then(|a| gltf_geometry::read_floats::<2>(&a, buffers))
+        .map(|v| v.into_iter().map(Vec2::from).collect())
+        .unwrap_or_default();
     let tangents: Vec<Vec4> = match material.textures.normal {
-        Some(_) => reader
-            .read_tangents()
-            .map(|it| it.map(Vec4::from).collect())
+        Some(_) => attribute(gltf::Semantic::Tangents)
+            .and_then(|a| gltf_geometry::read_floats::<4>(&a, buffers))
+            .map(|v| v.into_iter().map(Vec4::from).collect())
             .unwrap_or_default(),
         None => Vec::new(),
     };

@@ -28,11 +28,16 @@ pub(super) const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_variants",
     "KHR_texture_transform",
     "KHR_texture_basisu",
+    "KHR_mesh_quantization",
     "EXT_texture_webp",
 ];
 
 /// Extensions handled or warned about by name elsewhere: not reported as unknown.
 const KNOWN: &[&str] = &[
+    // Used without being required, these leave uncompressed data that the importer reads.
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
     "KHR_animation_pointer",
     "EXT_mesh_gpu_instancing",
     "KHR_materials_clearcoat",

@@ -9,6 +9,7 @@
 mod gltf;
 mod gltf_check;
 mod gltf_fix;
+mod gltf_geometry;
 mod obj;
 mod obj_check;
 mod place;

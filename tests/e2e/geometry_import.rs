@@ -1,0 +1,212 @@
+//! glTF geometry beyond plain float triangles: quantized attributes (`KHR_mesh_quantization`)
+//! dequantize to the vertices the floats would give, compressed geometry that cannot be decoded
+//! (Draco, meshopt) is refused with an error that names the codec and the way out. Every file
+//! is written by the test.
+
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use wavetrace::math::Vec3;
+use wavetrace::scene::load::{UpAxis, import_model};
+use wavetrace::scene::{Mesh, Transform};
+
+/// A glTF document whose one buffer is `<name>.bin` beside it, built from raw byte views.
+#[derive(Default)]
+struct Doc {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Doc {
+    /// Adds `data` as a buffer view (with `byteStride` when given) and `accessor` reading it.
+    fn push(&mut self, data: Vec<u8>, stride: Option<usize>, accessor: Value) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        let mut view =
+            json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
+        if let Some(stride) = stride {
+            view["byteStride"] = json!(stride);
+        }
+        self.views.push(view);
+        self.bytes.extend(data);
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn write(self, dir: &Path, name: &str, mut doc: Value) -> PathBuf {
+        let bin = format!("{name}.bin");
+        std::fs::write(dir.join(&bin), &self.bytes).unwrap();
+        doc["asset"] = json!({"version": "2.0"});
+        doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
+        doc["bufferViews"] = json!(self.views);
+        doc["accessors"] = json!(self.accessors);
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
+        path
+    }
+}
+
+/// The loaded meshes' vertices in world space, with their normals (mesh space).
+fn world_vertices(scene: &wavetrace::Scene) -> Vec<(Vec3, Option<Vec3>)> {
+    let mut out = Vec::new();
+    for (mesh, transform) in scene.world.query::<(&Mesh, &Transform)>().iter() {
+        for (i, p) in mesh.positions.iter().enumerate() {
+            out.push((
+                transform.0.transform_point3(*p),
+                mesh.normals.get(i).copied(),
+            ));
+        }
+    }
+    out
+}
+
+#[test]
+fn quantized_positions_and_normals_dequantize() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = Doc::default();
+    // Positions as unnormalized u16 in an interleaved view (stride 8: x, y, z, padding),
+    // scaled by the node's transform as gltfpack writes them; normals as normalized i8 (VEC3
+    // padded to 4 bytes per the alignment rule).
+    let grid: [[u16; 3]; 3] = [[0, 0, 0], [1000, 0, 0], [0, 2000, 500]];
+    let data = grid
+        .iter()
+        .flat_map(|p| p.iter().chain(&[0u16]).flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let position = doc.push(
+        data,
+        Some(8),
+        json!({"componentType": 5123, "count": 3, "type": "VEC3",
+               "min": [0, 0, 0], "max": [1000, 2000, 500]}),
+    );
+    let normal_bytes: [[i8; 3]; 3] = [[0, 0, 127], [0, -127, 0], [-128, 0, 0]];
+    let data = normal_bytes
+        .iter()
+        .flat_map(|n| n.iter().map(|&c| c as u8).chain([0]))
+        .collect();
+    let normal = doc.push(
+        data,
+        Some(4),
+        json!({"componentType": 5120, "normalized": true, "count": 3, "type": "VEC3"}),
+    );
+    let path = doc.write(
+        dir.path(),
+        "quantized.gltf",
+        json!({
+            "extensionsUsed": ["KHR_mesh_quantization"],
+            "extensionsRequired": ["KHR_mesh_quantization"],
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0, "scale": [0.001, 0.001, 0.001], "translation": [1, 2, 3]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal}}]}],
+        }),
+    );
+    let scene = import_model(&path, UpAxis::Z).unwrap_or_else(|e| panic!("loads: {e}"));
+    assert!(
+        scene.warnings.iter().all(|w| !w.contains("quantization")),
+        "{:?}",
+        scene.warnings
+    );
+    let vertices = world_vertices(&scene);
+    let expected_positions =
+        grid.map(|p| Vec3::new(1.0, 2.0, 3.0) + Vec3::from(p.map(f32::from)) * 0.001);
+    let expected_normals = [Vec3::Z, Vec3::NEG_Y, Vec3::NEG_X];
+    assert_eq!(vertices.len(), 3);
+    for ((p, n), (want_p, want_n)) in vertices
+        .iter()
+        .zip(expected_positions.iter().zip(expected_normals))
+    {
+        assert!((*p - *want_p).length() < 1e-5, "{p} != {want_p}");
+        assert_eq!(*n, Some(want_n));
+    }
+}
+
+#[test]
+fn unnormalized_integer_normals_are_refused_for_the_primitive() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = Doc::default();
+    let data = [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    let position = doc.push(
+        data,
+        None,
+        json!({"componentType": 5126, "count": 3, "type": "VEC3",
+               "min": [0, 0, 0], "max": [1, 1, 0]}),
+    );
+    let normal = doc.push(
+        vec![0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0],
+        Some(4),
+        json!({"componentType": 5120, "count": 3, "type": "VEC3"}),
+    );
+    let path = doc.write(
+        dir.path(),
+        "bad_normals.gltf",
+        json!({
+            "extensionsUsed": ["KHR_mesh_quantization"],
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": position, "NORMAL": normal}}]}],
+        }),
+    );
+    let message = import_model(&path, UpAxis::Z)
+        .err()
+        .expect("nothing left")
+        .to_string();
+    assert!(
+        message.contains("NORMAL") && message.contains("not normalized"),
+        "{message}"
+    );
+}
+
+/// A file whose one triangle is only available through `extension`'s compressed data.
+fn compressed(dir: &Path, name: &str, extension: &str, required: bool) -> PathBuf {
+    let mut root = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": [extension],
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0},
+            "extensions": {extension: {"bufferView": 0, "attributes": {"POSITION": 0}}}}]}],
+        "buffers": [{"byteLength": 4, "uri": "data:application/octet-stream;base64,AAAAAA=="}],
+        "bufferViews": [{"buffer": 0, "byteLength": 4}],
+    });
+    if required {
+        root["extensionsRequired"] = json!([extension]);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, root.to_string()).unwrap();
+    path
+}
+
+#[test]
+fn compressed_geometry_is_refused_naming_the_codec_and_the_way_out() {
+    let dir = tempfile::tempdir().unwrap();
+    for (extension, required, codec) in [
+        ("KHR_draco_mesh_compression", true, "Draco"),
+        ("KHR_draco_mesh_compression", false, "Draco"),
+        ("EXT_meshopt_compression", true, "meshoptimizer"),
+        ("KHR_meshopt_compression", true, "meshoptimizer"),
+    ] {
+        let path = compressed(
+            dir.path(),
+            &format!("{extension}{required}.gltf"),
+            extension,
+            required,
+        );
+        let message = import_model(&path, UpAxis::Z)
+            .err()
+            .unwrap_or_else(|| panic!("{extension} (required: {required}) should be refused"))
+            .to_string();
+        assert!(
+            message.contains(codec) && message.contains(extension) && message.contains("re-export"),
+            "{message}"
+        );
+        assert!(!message.contains("Missing data"), "{message}");
+    }
+}
