@@ -48,8 +48,16 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
 
     // Lights, and the primitives that can block shadow rays (which depend on the lights).
     let delta_lights = lights::punctual_lights(world, bvh.bounds(), path)?;
-    let occluders = occluders::occluders(&prims.columns.shapes, &delta_lights);
-    let lights = lights::scene_lights(&prims, delta_lights);
+    let (environment, environment_visible) = lights::environment(world, path)?;
+    // Shadow rays toward the environment leave the scene in every direction: every
+    // primitive can block one.
+    let occluders = if environment.is_some() {
+        None
+    } else {
+        occluders::occluders(&prims.columns.shapes, &delta_lights)
+    };
+    let scene_radius = lights::scene_radius(bvh.bounds());
+    let lights = lights::scene_lights(&prims, delta_lights, environment, scene_radius);
 
     // Per-slot columns.
     let (material, emitter) = slot_materials_and_lights(&prims.groups, &lights.first_light, &order);
@@ -81,6 +89,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
         materials: materials.bsdfs(),
         textures: materials.interner.textures,
         lights: lights.table,
+        environment_visible,
         textured_emission: lights.textured_emission,
         bvh,
         occluders,

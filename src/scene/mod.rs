@@ -9,7 +9,7 @@ pub mod components;
 pub mod load;
 
 pub use components::{
-    Camera, Emitter, FresnelModel, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere,
-    TextureSlot, Transform, VertexTangents,
+    Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel, Material, MaterialTextures,
+    Mesh, Name, PunctualLight, Sphere, TextureSlot, Transform, VertexTangents,
 };
 pub use load::{Scene, load_scene, load_scene_str};

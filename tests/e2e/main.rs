@@ -14,6 +14,7 @@ mod cli_import_errors;
 mod common;
 mod cornell;
 mod determinism;
+mod environment;
 mod furnace;
 mod fuzz_regressions;
 mod import;
