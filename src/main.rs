@@ -12,9 +12,10 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
+use wavetrace::scene::EnvironmentSource;
 use wavetrace::scene::load::{
-    LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning, is_model_file,
-    load_scene_placed,
+    EnvironmentOverrides, LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning,
+    is_model_file, load_scene_placed,
 };
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
 use wavetrace::{Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image};
@@ -112,6 +113,35 @@ struct RenderArgs {
     /// Print nothing on success but warnings: no progress bar, no summary.
     #[arg(short, long)]
     quiet: bool,
+    /// Light the scene from infinity: an equirectangular .hdr/.exr map, or a constant colour
+    /// R,G,B (replaces the scene's [environment]; a model file renders under it, not in the room).
+    #[arg(long, value_name = "FILE|R,G,B", value_parser = parse_environment)]
+    env: Option<EnvironmentSource>,
+    /// Multiplies the environment's radiance (default: the scene's, else 1).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    env_strength: Option<f32>,
+    /// Turns the environment about +Z by this many degrees (Blender's Mapping rotation).
+    #[arg(long, value_name = "DEG", allow_negative_numbers = true)]
+    env_rotation: Option<f32>,
+    /// Camera rays that escape see black; the environment still lights the scene.
+    #[arg(long)]
+    env_hidden: bool,
+}
+
+/// `--env`: three comma-separated numbers are a colour, anything else a file.
+fn parse_environment(text: &str) -> std::result::Result<EnvironmentSource, String> {
+    let parts: Vec<&str> = text.split(',').collect();
+    if parts.len() == 3
+        && let Ok(rgb) = parts
+            .iter()
+            .map(|p| p.trim().parse::<f32>())
+            .collect::<std::result::Result<Vec<f32>, _>>()
+    {
+        return Ok(EnvironmentSource::Color(wavetrace::math::Vec3::new(
+            rgb[0], rgb[1], rgb[2],
+        )));
+    }
+    Ok(EnvironmentSource::File(PathBuf::from(text)))
 }
 
 fn parse_time_budget(text: &str) -> std::result::Result<Duration, String> {
@@ -239,6 +269,12 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 Some("unitless") => LightUnits::Unitless,
                 Some("raw") => LightUnits::Raw,
                 _ => LightUnits::Spec,
+            },
+            environment: EnvironmentOverrides {
+                source: args.env.clone(),
+                strength: args.env_strength,
+                rotation_degrees: args.env_rotation,
+                hidden: args.env_hidden,
             },
         };
         let (scene, placement) = load_scene_placed(&args.scene, &options)?;

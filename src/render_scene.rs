@@ -69,9 +69,11 @@ pub struct RenderScene {
     /// Distinct textures.
     #[doc(hidden)]
     pub textures: Vec<Arc<Texture>>,
-    /// Emitting primitives and punctual lights.
+    /// Emitting primitives, punctual lights and the environment.
     #[doc(hidden)]
     pub lights: LightTable,
+    /// Whether camera rays that miss everything see the environment (else black).
+    pub(crate) environment_visible: bool,
     /// Per area light (as `lights.lights`), its emission texture; empty when no light has one.
     pub(crate) textured_emission: Vec<Option<TexturedEmission>>,
     /// The BVH over the primitives (slot `i` is `leaf_prims[i]`).

@@ -1,13 +1,13 @@
 //! Lights: one area light per primitive of each emitting entity, the punctual lights in
-//! world space, and the light table over both.
+//! world space, the environment light, and the light table over all of them.
 
 use super::Primitives;
 use super::materials;
 use crate::error::{Error, Result};
-use crate::lights::{AreaLight, DeltaLight, LightTable};
+use crate::lights::{AreaLight, DeltaLight, Environment, LightTable};
 use crate::math::{Vec3, Vec3A};
 use crate::render_scene::NO_EMITTER;
-use crate::scene::{Emitter, Name, PunctualLight, Transform};
+use crate::scene::{Emitter, EnvironmentLight, EnvironmentSource, Name, PunctualLight, Transform};
 use crate::texture::TexturedEmission;
 use obvhs::aabb::Aabb;
 use std::path::Path;
@@ -22,9 +22,14 @@ pub(super) struct SceneLights {
     pub(super) first_light: Vec<u32>,
 }
 
-/// The light table over the emitting primitives of `prims` and the punctual lights
-/// `delta_lights`.
-pub(super) fn scene_lights(prims: &Primitives, delta_lights: Vec<DeltaLight>) -> SceneLights {
+/// The light table over the emitting primitives of `prims`, the punctual lights
+/// `delta_lights` and the environment (chosen by its power over a sphere of `scene_radius`).
+pub(super) fn scene_lights(
+    prims: &Primitives,
+    delta_lights: Vec<DeltaLight>,
+    environment: Option<Environment>,
+    scene_radius: f32,
+) -> SceneLights {
     let Primitives {
         groups, columns, ..
     } = prims;
@@ -56,7 +61,8 @@ pub(super) fn scene_lights(prims: &Primitives, delta_lights: Vec<DeltaLight>) ->
             area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
         }
     }
-    let mut lights = LightTable::new(area_lights, delta_lights);
+    let mut lights =
+        LightTable::with_environment(area_lights, delta_lights, environment, scene_radius);
     let textured_emission = if textured_emission.iter().any(Option::is_some) {
         lights.locate_samples_on_triangles();
         textured_emission
@@ -77,7 +83,7 @@ pub(super) fn punctual_lights(
     scene_bounds: Option<Aabb>,
     path: &Path,
 ) -> Result<Vec<DeltaLight>> {
-    let scene_radius = scene_bounds.map_or(1.0, |b| ((b.max - b.min).length() * 0.5).max(1e-3));
+    let scene_radius = scene_radius(scene_bounds);
     let mut out = Vec::new();
     for (name, transform, light) in world
         .query::<(Option<&Name>, Option<&Transform>, &PunctualLight)>()
@@ -104,11 +110,15 @@ pub(super) fn punctual_lights(
                 inner_cone,
                 outer_cone,
             } => {
+                // inner = outer is a hard-edged cone (Blender's Spot Blend 0).
                 if !(0.0 <= inner_cone
-                    && inner_cone < outer_cone
+                    && inner_cone <= outer_cone
+                    && 0.0 < outer_cone
                     && outer_cone <= std::f32::consts::FRAC_PI_2)
                 {
-                    return bad("spot cone angles must satisfy 0 <= inner < outer <= pi/2");
+                    return bad(
+                        "spot cone angles must satisfy 0 <= inner <= outer <= pi/2, outer > 0",
+                    );
                 }
                 DeltaLight::spot(position, direction, intensity, inner_cone, outer_cone)
             }
@@ -124,6 +134,47 @@ pub(super) fn punctual_lights(
         }
     }
     Ok(out)
+}
+
+/// Radius of the scene's bounding sphere (1 for an empty scene), over which directional
+/// lights and the environment deliver their power.
+pub(super) fn scene_radius(scene_bounds: Option<Aabb>) -> f32 {
+    scene_bounds.map_or(1.0, |b| ((b.max - b.min).length() * 0.5).max(1e-3))
+}
+
+/// The world's environment light, loaded and checked (errors name its file, or the scene
+/// for a colour), and whether camera rays see it. More than one is an error.
+pub(super) fn environment(world: &hecs::World, path: &Path) -> Result<(Option<Environment>, bool)> {
+    let mut query = world.query::<&EnvironmentLight>();
+    let mut found = query.iter();
+    let Some(light) = found.next() else {
+        return Ok((None, true));
+    };
+    if found.next().is_some() {
+        return Err(Error::input(
+            path,
+            None,
+            "the scene has more than one environment light",
+        ));
+    }
+    let environment = match &light.source {
+        EnvironmentSource::Color(rgb) => {
+            let environment = Environment::constant(*rgb, light.strength, path)?;
+            // Checked as a map's would be, though a constant has no direction to turn.
+            if !light.rotation_degrees.is_finite() {
+                return Err(Error::input(
+                    path,
+                    None,
+                    "environment rotation must be a finite number of degrees",
+                ));
+            }
+            environment
+        }
+        EnvironmentSource::File(file) => {
+            Environment::from_file(file, light.strength, light.rotation_degrees)?
+        }
+    };
+    Ok((Some(environment), light.visible_to_camera))
 }
 
 /// Emitters that emit nothing are dropped; invalid radiance is an error.

@@ -49,15 +49,18 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
 
     // Lights, and the primitives that can block shadow rays (which depend on the lights).
     let delta_lights = lights::punctual_lights(world, bvh.bounds(), path)?;
-    // Shadow rays in scenes with alpha-tested primitives walk the whole tree: its slots are
-    // the ones flagged for the coverage test.
+    let (environment, environment_visible) = lights::environment(world, path)?;
+    // Shadow rays in scenes with alpha-tested primitives walk the whole tree (its slots are
+    // the ones flagged for the coverage test), and so do shadow rays toward the environment,
+    // which leave the scene in every direction: every primitive can block one.
     let alpha_tested = !prims.alpha_records.is_empty();
-    let occluders = if alpha_tested {
+    let occluders = if alpha_tested || environment.is_some() {
         None
     } else {
         occluders::occluders(&prims.columns.shapes, &delta_lights)
     };
-    let lights = lights::scene_lights(&prims, delta_lights);
+    let scene_radius = lights::scene_radius(bvh.bounds());
+    let lights = lights::scene_lights(&prims, delta_lights, environment, scene_radius);
 
     // Per-slot columns.
     let (material, emitter, alpha_of_slot) =
@@ -98,6 +101,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
         materials: materials.bsdfs(),
         textures: materials.interner.textures,
         lights: lights.table,
+        environment_visible,
         textured_emission: lights.textured_emission,
         bvh,
         occluders,

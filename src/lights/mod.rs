@@ -2,13 +2,14 @@
 //! 16 generalised to many emitters) and every punctual light (point, spot, directional; delta
 //! lights reached only by next-event estimation, see [`punctual`]), each chosen in proportion
 //! to its power, and sampled four lanes at a time; a scene lit by one area light takes the
-//! fast path of [`single`].
+//! fast path of [`single`]. The environment light ([`environment`]), when there is one, is
+//! the table's last entry, chosen by its power over the scene's bounding sphere.
 
-#[allow(dead_code)] // until the renderer reads it
-pub(crate) mod environment;
+pub mod environment;
 mod punctual;
 mod single;
 
+pub use environment::Environment;
 pub use punctual::{DeltaKind, DeltaLight};
 use single::{SingleLight, single_light};
 
@@ -182,6 +183,11 @@ pub struct LightTable {
     emitting_planes: Vec<EmittingPlane>,
     /// The only light, when it is one triangle or one parallelogram.
     single: Option<SingleLight>,
+    /// The light at infinity, sampled after the punctual lights (index
+    /// `lights.len() + delta_lights.len()` in `power_cdf`) when its power is positive.
+    environment: Option<Environment>,
+    /// Probability of choosing the environment (0 when it is not sampled).
+    environment_probability: f32,
 }
 
 /// A plane of one-sided triangle lights, which emit toward `normal`: `normal . x = offset`.
@@ -295,7 +301,23 @@ fn emitting_planes(lights: &[AreaLight], delta_lights: &[DeltaLight]) -> Vec<Emi
 impl LightTable {
     /// Builds the table; an area light's `power = luminance(radiance) * area * pi` per
     /// emitting side.
-    pub fn new(mut lights: Vec<AreaLight>, mut delta_lights: Vec<DeltaLight>) -> Self {
+    pub fn new(lights: Vec<AreaLight>, delta_lights: Vec<DeltaLight>) -> Self {
+        Self::with_environment(lights, delta_lights, None, 1.0)
+    }
+
+    /// Builds the table with an environment light too, whose power is
+    /// [`Environment::power_estimate`] over the scene's bounding sphere of radius
+    /// `scene_radius`. A black environment is kept for camera rays but never sampled.
+    pub fn with_environment(
+        mut lights: Vec<AreaLight>,
+        mut delta_lights: Vec<DeltaLight>,
+        environment: Option<Environment>,
+        scene_radius: f32,
+    ) -> Self {
+        let environment_power = environment
+            .as_ref()
+            .map_or(0.0, |e| e.power_estimate(scene_radius) as f64);
+        let sampled = environment_power > 0.0 && environment_power.is_finite();
         let power = |l: &AreaLight| {
             luminance(l.radiance) * l.area * PI * if l.two_sided { 2.0 } else { 1.0 }
         };
@@ -303,6 +325,7 @@ impl LightTable {
             .iter()
             .map(|l| power(l) as f64)
             .chain(delta_lights.iter().map(|l| l.power as f64))
+            .chain(sampled.then_some(environment_power))
             .collect();
         let total: f64 = powers.iter().sum();
         let mut running = 0.0f64;
@@ -328,14 +351,43 @@ impl LightTable {
                 [l.normal.extend(l.pdf_area), l.radiance.extend(two_sided)]
             })
             .collect();
+        let environment_probability = if sampled {
+            probability(environment_power)
+        } else {
+            0.0
+        };
+        // Light from infinity reaches every point from every side: neither the one-light
+        // fast path nor the behind-all-lights test holds.
+        let (single, emitting_planes) = if environment.is_some() {
+            (None, Vec::new())
+        } else {
+            (
+                single_light(&lights, &delta_lights),
+                emitting_planes(&lights, &delta_lights),
+            )
+        };
         LightTable {
-            single: single_light(&lights, &delta_lights),
+            single,
             records,
-            emitting_planes: emitting_planes(&lights, &delta_lights),
+            emitting_planes,
             lights,
             delta_lights,
             power_cdf,
+            environment,
+            environment_probability,
         }
+    }
+
+    /// The environment light, if the scene has one (sampled or not).
+    #[inline]
+    pub fn environment(&self) -> Option<&Environment> {
+        self.environment.as_ref()
+    }
+
+    /// Probability with which a light sample chooses the environment (0 if it never does).
+    #[inline]
+    pub fn environment_probability(&self) -> f32 {
+        self.environment_probability
     }
 
     /// Whether `p` lies behind every light, so that no light sample taken from it could
@@ -435,13 +487,14 @@ impl LightTable {
         }
         let lanes = (0..LIGHT_LANES).fold(0, |bits, k| bits | u32::from(punctual[k]) << k);
         let mask = BVec4A::from_array(punctual);
-        let merged = samples.merged(self.punctual_samples(p, lanes, &index), mask);
+        let merged = samples.merged(self.punctual_samples(p, lanes, &index, u), mask);
         (merged, points)
     }
 
-    /// The samples of the punctual lights that the lanes set in `lanes` chose (`index`,
-    /// counted after the area lights); other lanes are zero. Apart, and off the common path,
-    /// so that the samples of area lights never leave registers.
+    /// The samples of the punctual lights and the environment that the lanes set in `lanes`
+    /// chose (`index`, counted after the area lights; the environment's direction from lane
+    /// `k` of `u`); other lanes are zero. Apart, and off the common path, so that the
+    /// samples of area lights never leave registers.
     #[cold]
     #[inline(never)]
     fn punctual_samples(
@@ -449,14 +502,32 @@ impl LightTable {
         p: Vec3A,
         mut lanes: u32,
         index: &[usize; LIGHT_LANES],
+        u: [Vec4; 2],
     ) -> LightSamples {
         let mut wi = [[0.0; LIGHT_LANES]; 3];
         let mut radiance = [[0.0; LIGHT_LANES]; 3];
         let mut distance = [0.0; LIGHT_LANES];
+        let mut scale = [1.0; LIGHT_LANES];
+        let mut pdf_solid_angle = [f32::INFINITY; LIGHT_LANES];
         while lanes != 0 {
             let k = lanes.trailing_zeros() as usize;
             lanes &= lanes - 1;
-            let s = self.delta_lights[index[k] - self.lights.len()].sample_from(p);
+            let Some(light) = self.delta_lights.get(index[k] - self.lights.len()) else {
+                // The environment: a direction by its own density, at infinity.
+                let environment = self.environment.as_ref().expect("sampled environment");
+                let s = environment.sample(Vec2::new(u[0][k], u[1][k]));
+                let pdf = self.environment_probability * s.pdf;
+                for axis in 0..3 {
+                    wi[axis][k] = s.direction[axis];
+                    radiance[axis][k] = s.radiance[axis];
+                }
+                distance[k] = f32::INFINITY;
+                // A zero density (a pole of the map, measure zero) drops the sample.
+                scale[k] = if pdf > 0.0 { 1.0 / pdf } else { 0.0 };
+                pdf_solid_angle[k] = pdf;
+                continue;
+            };
+            let s = light.sample_from(p);
             for axis in 0..3 {
                 wi[axis][k] = s.wi[axis];
                 radiance[axis][k] = s.weight[axis];
@@ -467,8 +538,8 @@ impl LightTable {
             wi: wi.map(Vec4::from_array),
             distance: Vec4::from_array(distance),
             radiance: radiance.map(Vec4::from_array),
-            scale: Vec4::ONE,
-            pdf_solid_angle: Vec4::INFINITY,
+            scale: Vec4::from_array(scale),
+            pdf_solid_angle: Vec4::from_array(pdf_solid_angle),
         }
     }
 }

@@ -25,7 +25,8 @@ pub enum DeltaKind {
         position: Vec3A,
     },
     /// Shines from `position` into a cone about `direction`, with glTF's smooth falloff
-    /// between the inner and outer cone (`attenuation = clamp((cos - cos_outer) / (cos_inner - cos_outer))^2`).
+    /// between the inner and outer cone (`attenuation = clamp((cos - cos_outer) / (cos_inner - cos_outer))^2`),
+    /// or a hard edge when the two cones are one (Blender's Spot Blend 0).
     Spot {
         /// Position.
         position: Vec3A,
@@ -83,6 +84,20 @@ impl DeltaLight {
     }
 }
 
+/// The square root of a spot light's attenuation at cosine `cos` from its axis: glTF's
+/// linear ramp from the outer cone (0) to the inner cone (1), or, when the cones coincide,
+/// 1 inside and 0 outside (a hard edge, with no division by their zero difference).
+#[inline]
+pub(super) fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+    if cos_inner > cos_outer {
+        ((cos - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
+    } else if cos >= cos_outer {
+        1.0
+    } else {
+        0.0
+    }
+}
+
 /// What a punctual light sends toward a point: the direction to it, its distance and the
 /// incident radiance over the probability of choosing the light.
 pub(super) struct PunctualSample {
@@ -119,7 +134,7 @@ impl DeltaLight {
             } => {
                 let (wi, distance, w) = towards(position);
                 let cos = -wi.dot(direction);
-                let t = ((cos - cos_outer) / (cos_inner - cos_outer).max(1e-3)).clamp(0.0, 1.0);
+                let t = spot_falloff(cos, cos_inner, cos_outer);
                 PunctualSample {
                     wi,
                     distance,
@@ -132,5 +147,52 @@ impl DeltaLight {
                 weight: self.intensity * inv_p,
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_spot_with_equal_cones_has_a_hard_edge() {
+        let edge = 0.5f32.cos();
+        assert_eq!(spot_falloff(edge + 1e-4, edge, edge), 1.0);
+        assert_eq!(spot_falloff(1.0, edge, edge), 1.0);
+        assert_eq!(spot_falloff(edge - 1e-4, edge, edge), 0.0);
+        // Seen from a point on the axis, 2 m away: intensity / d^2, in full.
+        let light = DeltaLight {
+            select_probability: 1.0,
+            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, 0.5, 0.5)
+        };
+        let s = light.sample_from(Vec3A::new(0.0, 0.0, -2.0));
+        assert!((s.weight - Rgb::splat(0.25)).abs().max_element() < 1e-6);
+        // Just outside the cone: nothing.
+        let outside = Vec3A::new(0.51f32.sin(), 0.0, -0.51f32.cos());
+        assert_eq!(light.sample_from(outside).weight, Rgb::ZERO);
+        // Power: the cone's solid angle times the intensity.
+        let expected = 2.0 * PI * (1.0 - edge);
+        assert!((light.power - expected).abs() < 1e-5 * expected);
+    }
+
+    #[test]
+    fn a_spot_keeps_gltf_falloff_between_its_cones() {
+        let (inner, outer) = (0.3f32, 0.6f32);
+        let (ci, co) = (inner.cos(), outer.cos());
+        // Halfway in cosine: (1/2)^2 of the intensity, as glTF's formula squared.
+        let light = DeltaLight {
+            select_probability: 1.0,
+            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, inner, outer)
+        };
+        let cos = 0.5 * (ci + co);
+        let sin = (1.0 - cos * cos).sqrt();
+        let s = light.sample_from(Vec3A::new(sin, 0.0, -cos));
+        assert!((s.weight.x - 0.25).abs() < 1e-4, "{}", s.weight);
+        assert_eq!(spot_falloff(ci + 1e-3, ci, co), 1.0);
+        assert_eq!(spot_falloff(co - 1e-3, ci, co), 0.0);
+        // A narrow blend keeps its own ramp (no minimum width).
+        let narrow = (0.5f32.cos(), 0.5001f32.cos());
+        let mid = 0.5 * (narrow.0 + narrow.1);
+        assert!((spot_falloff(mid, narrow.0, narrow.1) - 0.5).abs() < 0.05);
     }
 }

@@ -3,6 +3,7 @@
 pub use crate::bsdf::FresnelModel;
 use crate::math::{Affine3A, Rgb, Vec2, Vec3, Vec4};
 use crate::texture::{Texture, UvTransform};
+use std::path::PathBuf;
 use std::sync::Arc;
 
 /// Object-to-world placement of an entity (`world_from_object`).
@@ -221,6 +222,30 @@ pub enum PunctualLight {
         /// Irradiance on a surface facing the light, W/m^2 (glTF's lux, read as W/m^2).
         irradiance: Rgb,
     },
+}
+
+/// The light at infinity around the scene (Blender's world, Mitsuba's `envmap`): at most one
+/// entity carries it. Described here; `flatten` loads the file and checks the values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvironmentLight {
+    /// A constant colour or an equirectangular image.
+    pub source: EnvironmentSource,
+    /// Multiplies the radiance (>= 0).
+    pub strength: f32,
+    /// Degrees about +Z (Blender's Mapping node rotation in front of the Environment Texture).
+    pub rotation_degrees: f32,
+    /// Whether camera rays that escape see it (false: black background, lighting unchanged).
+    pub visible_to_camera: bool,
+}
+
+/// Where an [`EnvironmentLight`]'s radiance comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvironmentSource {
+    /// The same radiance from every direction.
+    Color(Rgb),
+    /// A Radiance `.hdr` or OpenEXR `.exr` latitude-longitude map (path as resolved by the
+    /// loader: relative to the scene file, or as given on the command line).
+    File(PathBuf),
 }
 
 /// A pinhole camera in world space.

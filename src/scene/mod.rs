@@ -9,7 +9,8 @@ pub mod components;
 pub mod load;
 
 pub use components::{
-    AlphaCoverage, AlphaMode, Camera, Emitter, FresnelModel, Material, MaterialTextures, Mesh,
-    Name, PunctualLight, Sphere, TextureSlot, Transform, VertexColors, VertexTangents,
+    AlphaCoverage, AlphaMode, Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel,
+    Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, TextureSlot, Transform,
+    VertexColors, VertexTangents,
 };
 pub use load::{Scene, load_scene, load_scene_str};

@@ -208,6 +208,18 @@ pub(super) fn emission_weight(
     .x
 }
 
+/// The MIS weight of the environment's radiance that a BSDF-sampled ray (solid-angle
+/// density `bsdf_pdf`) found on leaving the scene, against the `shadow_rays` shadow rays
+/// that could have chosen its direction (solid-angle density `light_pdf`, choice included).
+#[inline]
+pub(super) fn environment_weight(bsdf_pdf: f32, shadow_rays: u32, light_pdf: f32) -> f32 {
+    power_heuristic(
+        Vec4::splat(bsdf_pdf),
+        Vec4::splat(shadow_rays as f32 * light_pdf),
+    )
+    .x
+}
+
 /// Veach's power heuristic (beta = 2), lane by lane, for a sample from the strategy of
 /// density `pdf` against one of density `other_pdf`, each already multiplied by its sample
 /// count.

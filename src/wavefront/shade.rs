@@ -8,7 +8,7 @@ use super::next_event::{
 };
 use super::surface;
 use crate::geometry::SurfacePoint;
-use crate::lights::{LightSamples, LightUniforms};
+use crate::lights::{Environment, LightSamples, LightUniforms};
 use crate::math::frame::Frame;
 use crate::math::rng::{Sampler, dim};
 use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
@@ -117,6 +117,34 @@ struct PathView<'a> {
     next_direction: &'a mut Vec3A,
 }
 
+/// A ray that left the scene: the environment's radiance, in full where next-event
+/// estimation could not have chosen the direction, else with its MIS weight against the
+/// shadow rays; camera rays see nothing when the environment is hidden from the camera.
+#[cold]
+fn escaped(
+    scene: &RenderScene,
+    environment: &Environment,
+    params: &ShadeParams,
+    hit: &Hit,
+    path: &mut PathView,
+) {
+    if params.bounce == 0 && !scene.environment_visible {
+        return;
+    }
+    let weight = if *path.count_emission {
+        1.0
+    } else if *path.bsdf_pdf > 0.0 {
+        next_event::environment_weight(
+            *path.bsdf_pdf,
+            params.shadow_rays,
+            scene.lights.environment_probability() * environment.pdf(hit.direction),
+        )
+    } else {
+        return; // light sampling only: the shadow rays counted it
+    };
+    *path.radiance += *path.throughput * environment.eval(hit.direction) * weight;
+}
+
 /// Shades one hit. Returns whether the path was cut by the depth cap.
 fn shade_one(
     scene: &RenderScene,
@@ -129,7 +157,10 @@ fn shade_one(
     *next_event.shadow.count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
-        return false; // the background is black
+        if let Some(environment) = scene.lights.environment() {
+            escaped(scene, environment, params, &hit, path);
+        }
+        return false; // without an environment the background is black
     }
     let slot = hit.slot as usize;
     let bounce = params.bounce;

@@ -15,6 +15,7 @@ mod cli_import_errors;
 mod common;
 mod cornell;
 mod determinism;
+mod environment;
 mod furnace;
 mod fuzz_regressions;
 mod geometry_import;

@@ -23,7 +23,7 @@ pub use place::{
 
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat3A, Vec3A};
-use crate::scene::{Mesh, PunctualLight};
+use crate::scene::{EnvironmentLight, EnvironmentSource, Mesh, Name, PunctualLight};
 use std::path::Path;
 
 /// A loaded scene: the entities, and the render settings the file asks for (the CLI's flags
@@ -108,6 +108,73 @@ pub struct LoadOptions {
     pub up: UpAxis,
     /// How the model file's light intensities are read (`--light-units`).
     pub light_units: LightUnits,
+    /// The environment flags (`--env`, ...), which replace the file's `[environment]`
+    /// field by field. A model file given an environment renders under it as it is, not in
+    /// the seed room (unless `in_room`).
+    pub environment: EnvironmentOverrides,
+}
+
+/// The command line's environment settings; `None` keeps the scene's.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EnvironmentOverrides {
+    /// `--env FILE|R,G,B`.
+    pub source: Option<EnvironmentSource>,
+    /// `--env-strength`.
+    pub strength: Option<f32>,
+    /// `--env-rotation` (degrees about +Z).
+    pub rotation_degrees: Option<f32>,
+    /// `--env-hidden`: camera rays that escape see black.
+    pub hidden: bool,
+}
+
+impl EnvironmentOverrides {
+    /// Whether any flag was given.
+    pub fn any(&self) -> bool {
+        self.source.is_some()
+            || self.strength.is_some()
+            || self.rotation_degrees.is_some()
+            || self.hidden
+    }
+
+    /// Applies the flags to the world's environment (adding one if `--env` names a source).
+    /// A flag that modifies an environment the scene lacks is an error. Values are checked
+    /// by `flatten`, which loads the file.
+    pub fn apply(&self, world: &mut hecs::World, path: &Path) -> Result<()> {
+        if !self.any() {
+            return Ok(());
+        }
+        let existing = (world.query::<(hecs::Entity, &EnvironmentLight)>().iter())
+            .map(|(entity, light)| (entity, light.clone()))
+            .next();
+        let base = match (existing, &self.source) {
+            (Some((entity, light)), _) => {
+                world.despawn(entity).expect("entity just queried");
+                light
+            }
+            (None, Some(source)) => EnvironmentLight {
+                source: source.clone(),
+                strength: 1.0,
+                rotation_degrees: 0.0,
+                visible_to_camera: true,
+            },
+            (None, None) => {
+                return Err(Error::input(
+                    path,
+                    None,
+                    "--env-strength, --env-rotation and --env-hidden need an environment: \
+                     give --env FILE|R,G,B or an [environment] table in the scene",
+                ));
+            }
+        };
+        let light = EnvironmentLight {
+            source: self.source.clone().unwrap_or(base.source),
+            strength: self.strength.unwrap_or(base.strength),
+            rotation_degrees: self.rotation_degrees.unwrap_or(base.rotation_degrees),
+            visible_to_camera: base.visible_to_camera && !self.hidden,
+        };
+        world.spawn((Name("environment".into()), light));
+        Ok(())
+    }
 }
 
 /// What [`load_scene_placed`] did with the file.
@@ -172,7 +239,8 @@ pub fn load_scene_with(path: &Path, options: &LoadOptions) -> Result<Scene> {
 pub fn load_scene_placed(path: &Path, options: &LoadOptions) -> Result<(Scene, Placement)> {
     let (mut scene, placement) = if is_model_file(path) {
         let model = import_model_with(path, options.up, options.light_units)?;
-        if options.in_room || !lights_itself(&model.world) {
+        let under_environment = options.environment.source.is_some();
+        if options.in_room || !(lights_itself(&model.world) || under_environment) {
             (place_in_room(model, path)?, Placement::InRoom)
         } else {
             let mut model = model;
@@ -195,6 +263,7 @@ pub fn load_scene_placed(path: &Path, options: &LoadOptions) -> Result<(Scene, P
         (scene_file::load(path, &text)?, Placement::SceneFile)
     };
     place::select_camera(&mut scene.world, options.camera.as_deref(), path)?;
+    options.environment.apply(&mut scene.world, path)?;
     Ok((scene, placement))
 }
 

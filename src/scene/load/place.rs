@@ -313,7 +313,8 @@ pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
 
 /// What to do about a dark image of a model rendered as it is: said by
 /// [`dark_image_warning`].
-pub const DARK_IMAGE_HINT: &str = "render it with --in-room to light it with the seed room";
+pub const DARK_IMAGE_HINT: &str = "render it with --in-room to light it with the seed room, \
+     or under a sky with --env assets/sky.hdr (or --env 1,1,1 for a uniform white sky)";
 
 /// A pixel is lit when its luminance (after the exposure) reaches this: about a 15% grey
 /// once sRGB-encoded.

@@ -9,7 +9,10 @@ use super::{
 };
 use crate::error::{Error, Result, closest_match};
 use crate::math::{Affine3A, Quat, Vec3};
-use crate::scene::{Camera, Emitter, FresnelModel, Material, Mesh, Name, Sphere, Transform};
+use crate::scene::{
+    Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel, Material, Mesh, Name,
+    Sphere, Transform,
+};
 use crate::settings::{MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SHADOW_RAYS};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -27,6 +30,7 @@ struct SceneFile {
     include: Vec<Spanned<String>>,
     camera: Option<Spanned<CameraDef>>,
     render: Option<RenderDef>,
+    environment: Option<Spanned<EnvironmentDef>>,
     #[serde(default)]
     materials: BTreeMap<String, Spanned<MaterialDef>>,
     #[serde(default, rename = "shape")]
@@ -73,6 +77,56 @@ struct CameraDef {
     up: [f32; 3],
     /// Vertical field of view in degrees.
     vfov: f32,
+}
+
+/// `[environment]`: the light at infinity, a constant `color` or an equirectangular `file`
+/// (relative to the scene file).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EnvironmentDef {
+    color: Option<[f32; 3]>,
+    file: Option<String>,
+    #[serde(default = "unit")]
+    strength: f32,
+    /// Degrees about +Z.
+    #[serde(default)]
+    rotation: f32,
+    #[serde(default)]
+    hide_from_camera: bool,
+}
+
+impl EnvironmentDef {
+    /// The component, with the file resolved against the scene file's folder.
+    fn resolve(&self, source: &Source, offset: usize) -> Result<EnvironmentLight> {
+        let err = |m: &str| source.error(offset, format!("environment: {m}"));
+        let source_of = match (&self.color, &self.file) {
+            (Some(rgb), None) => EnvironmentSource::Color(Vec3::from(*rgb)),
+            (None, Some(file)) => {
+                let base = source.path.parent().unwrap_or(Path::new("."));
+                EnvironmentSource::File(base.join(file))
+            }
+            _ => {
+                return Err(err(
+                    "give exactly one of color = [r, g, b] or file = \"...\"",
+                ));
+            }
+        };
+        if !(self.strength.is_finite() && self.strength >= 0.0) {
+            return Err(err(&format!(
+                "strength must be a finite number >= 0, got {}",
+                self.strength
+            )));
+        }
+        if !self.rotation.is_finite() {
+            return Err(err("rotation must be a finite number of degrees"));
+        }
+        Ok(EnvironmentLight {
+            source: source_of,
+            strength: self.strength,
+            rotation_degrees: self.rotation,
+            visible_to_camera: !self.hide_from_camera,
+        })
+    }
 }
 
 /// `[render]`: settings the CLI's flags may override. Spanned so that a bad value is
@@ -263,6 +317,7 @@ impl Source {
 #[derive(Default)]
 struct Gathered {
     camera: Option<(Source, Spanned<CameraDef>)>,
+    environment: Option<EnvironmentLight>,
     defaults: SceneDefaults,
     materials: BTreeMap<String, Material>,
     shapes: Vec<(Source, Spanned<ShapeDef>)>,
@@ -332,6 +387,13 @@ fn gather(source: Source, stack: &mut Vec<PathBuf>, out: &mut Gathered) -> Resul
 
     if let Some(camera) = file.camera {
         out.camera = Some((source.clone(), camera));
+    }
+    if let Some(environment) = file.environment {
+        out.environment = Some(
+            environment
+                .get_ref()
+                .resolve(&source, environment.span().start)?,
+        );
     }
     if let Some(render) = file.render {
         out.defaults = out.defaults.overridden_by(render.validate(&source)?);
@@ -521,6 +583,9 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
         ));
     }
     world.spawn((Name("camera".into()), camera));
+    if let Some(environment) = gathered.environment {
+        world.spawn((Name("environment".into()), environment));
+    }
 
     for (index, (source, shape)) in gathered.shapes.iter().enumerate() {
         let span = shape.span().start;
