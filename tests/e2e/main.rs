@@ -28,3 +28,4 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
+mod transmission;
