@@ -127,6 +127,9 @@ impl Bsdf {
     pub fn transmits(&self) -> bool {
         match *self {
             Bsdf::MetallicRoughness(params) => params.transmission > 0.0 && params.metallic < 1.0,
+            Bsdf::Layered(layered) => {
+                layered.base.transmission > 0.0 && layered.base.metallic < 1.0
+            }
             Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => false,
         }
     }
