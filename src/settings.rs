@@ -275,12 +275,22 @@ mod tests {
         assert_eq!((s.width, s.height), (800, 400));
         let s = RenderSettings::resolve(&scene_none, &RenderOverrides::default(), Some(0.5));
         assert_eq!((s.width, s.height), (400, 800));
-        // A flag's width with the scene's height: both given, the aspect ratio is ignored.
+        // A flag's lone width never takes the other side from the scene file: it keeps the
+        // camera's aspect ratio, else the scene's image's, else the image is square.
         let tall_scene = SceneDefaults {
             height: Some(100),
             ..SceneDefaults::default()
         };
         let s = RenderSettings::resolve(&tall_scene, &only_width, wide);
-        assert_eq!((s.width, s.height), (400, 100));
+        assert_eq!((s.width, s.height), (400, 200));
+        let s = RenderSettings::resolve(&tall_scene, &only_width, None);
+        assert_eq!((s.width, s.height), (400, 400));
+        let scene_4_by_3 = SceneDefaults {
+            width: Some(800),
+            height: Some(600),
+            ..SceneDefaults::default()
+        };
+        let s = RenderSettings::resolve(&scene_4_by_3, &only_width, None);
+        assert_eq!((s.width, s.height), (400, 300));
     }
 }

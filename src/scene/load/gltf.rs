@@ -776,7 +776,7 @@ fn perceived_brightness(c: Rgb) -> f32 {
 
 /// Base colour and metallic from specular-glossiness diffuse and specular colours: the
 /// conversion of the Khronos glTF sample viewer and Babylon.js (documented in
-/// docs/importing-notes.md). Metallic solves, in perceived brightness, diffuse
+/// docs/importing.md). Metallic solves, in perceived brightness, diffuse
 /// `(1 - max(specular)) / (1 - F0) * (1 - metallic)` and specular `F0 (1 - m) + base m` for the
 /// same base; the base colour blends the colours that each equation gives by metallic squared.
 /// Exact for pure dielectrics (specular 0.04) and pure metals (black diffuse).
