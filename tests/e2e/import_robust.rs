@@ -501,19 +501,19 @@ fn each_ignored_feature_is_named_once_per_file() {
             "material": k}));
         materials.push(json!({"name": format!("m{k}"), "alphaMode": "BLEND",
             "occlusionTexture": {"index": 0},
-            "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1}}}));
+            "extensions": {"KHR_materials_volume": {"thicknessFactor": 1}}}));
     }
     let mut gltf = one_mesh(json!(primitives));
     gltf["materials"] = json!(materials);
     gltf["images"] = json!([{"uri": "ao.png"}]);
     gltf["textures"] = json!([{"source": 0}]);
-    gltf["extensionsUsed"] = json!(["KHR_materials_clearcoat", "EXT_lights_ies"]);
+    gltf["extensionsUsed"] = json!(["KHR_materials_volume", "EXT_lights_ies"]);
     let path = doc.write(dir.path(), "features.gltf", gltf);
     let scene = load(&path);
     let warnings = local_warnings(&scene, dir.path());
     for expected in [
         "features.gltf: occlusion maps are ignored (3 materials)",
-        "features.gltf: KHR_materials_clearcoat is ignored (3 materials)",
+        "features.gltf: KHR_materials_volume is ignored (3 materials)",
         "features.gltf: the extension EXT_lights_ies is not supported; ignored",
     ] {
         assert_eq!(
