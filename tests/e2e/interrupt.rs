@@ -28,7 +28,7 @@ fn render_and_signal(
     let scene = dir.join("room.toml");
     std::fs::write(&scene, ROOM).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
-        .args(["render", "-q"])
+        .args(["render"])
         .arg(&scene)
         .arg("-o")
         .arg(output)
