@@ -167,9 +167,7 @@ fn time_budget_renders_whole_passes_then_writes() {
     let output = dir.path().join("room.exr");
     let start = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
-        .args([
-            "render", "-q", "--width", "16", "--height", "16", "--time", "2s",
-        ])
+        .args(["render", "--width", "16", "--height", "16", "--time", "2s"])
         .arg(&scene)
         .arg("-o")
         .arg(&output)
