@@ -31,5 +31,4 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
-mod transmission;
 mod vertex_colors;
