@@ -1,8 +1,11 @@
 //! Helpers shared by the end-to-end tests: scenes from TOML text, renders on a given number
 //! of threads, and the statistics of image means.
 
-use std::path::Path;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use wavetrace::math::{Vec3, Vec3A};
+use wavetrace::scene::{Mesh, Transform};
 use wavetrace::{
     Flow, Image, RenderScene, RenderSettings, RenderStats, flatten, render,
     scene::load::load_scene_str,
@@ -234,4 +237,88 @@ pub fn run_alone(test: &str, body: impl FnOnce()) {
         out.status.success() && stdout.contains("test result: ok. 1 passed"),
         "{test} failed in its own process:\n{stdout}\n{stderr}"
     );
+}
+
+/// A glTF document whose one buffer is `<name>.bin` beside it, built from raw byte views.
+#[derive(Default)]
+pub struct GltfDoc {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl GltfDoc {
+    /// Adds `data` as a buffer view (with `byteStride` when given) and `accessor` reading it.
+    pub fn push(&mut self, data: Vec<u8>, stride: Option<usize>, accessor: Value) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        let mut view =
+            json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
+        if let Some(stride) = stride {
+            view["byteStride"] = json!(stride);
+        }
+        self.views.push(view);
+        self.bytes.extend(data);
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// Adds vertex positions with the `min`/`max` glTF requires of them.
+    pub fn positions(&mut self, values: &[[f32; 3]]) -> usize {
+        let a = self.floats(values, "VEC3");
+        let bound = |f: fn(f32, f32) -> f32| {
+            (0..3)
+                .map(|k| values.iter().map(|p| p[k]).reduce(f).unwrap_or(0.0))
+                .collect::<Vec<f32>>()
+        };
+        self.accessors[a]["min"] = json!(bound(f32::min));
+        self.accessors[a]["max"] = json!(bound(f32::max));
+        a
+    }
+
+    /// Adds tightly packed floats as an accessor of type `kind` ("SCALAR", "VEC3", "MAT4", ...).
+    pub fn floats<const N: usize>(&mut self, values: &[[f32; N]], kind: &str) -> usize {
+        let data = values
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        self.push(
+            data,
+            None,
+            json!({"componentType": 5126, "count": values.len(), "type": kind}),
+        )
+    }
+
+    pub fn write(self, dir: &Path, name: &str, mut doc: Value) -> PathBuf {
+        let bin = format!("{name}.bin");
+        std::fs::write(dir.join(&bin), &self.bytes).unwrap();
+        doc["asset"] = json!({"version": "2.0"});
+        doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
+        doc["bufferViews"] = json!(self.views);
+        doc["accessors"] = json!(self.accessors);
+        let path = dir.join(name);
+        std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
+        path
+    }
+}
+
+/// The loaded meshes' vertices and their unit normals in world space.
+pub fn world_vertices(scene: &wavetrace::Scene) -> Vec<(Vec3, Option<Vec3>)> {
+    let mut out = Vec::new();
+    for (mesh, transform) in scene.world.query::<(&Mesh, &Transform)>().iter() {
+        let normal_matrix = transform.0.matrix3.inverse().transpose();
+        for (i, p) in mesh.positions.iter().enumerate() {
+            out.push((
+                transform.0.transform_point3(*p),
+                mesh.normals
+                    .get(i)
+                    .map(|n| Vec3::from(normal_matrix * Vec3A::from(*n)).normalize()),
+            ));
+        }
+    }
+    out
 }

@@ -3,70 +3,16 @@
 //! (Draco, meshopt) is refused with an error that names the codec and the way out. Every file
 //! is written by the test.
 
-use serde_json::{Value, json};
+use crate::common::{GltfDoc, world_vertices};
+use serde_json::json;
 use std::path::{Path, PathBuf};
 use wavetrace::math::Vec3;
 use wavetrace::scene::load::{UpAxis, import_model};
-use wavetrace::scene::{Mesh, Transform};
-
-/// A glTF document whose one buffer is `<name>.bin` beside it, built from raw byte views.
-#[derive(Default)]
-struct Doc {
-    bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Doc {
-    /// Adds `data` as a buffer view (with `byteStride` when given) and `accessor` reading it.
-    fn push(&mut self, data: Vec<u8>, stride: Option<usize>, accessor: Value) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
-        let mut view =
-            json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
-        if let Some(stride) = stride {
-            view["byteStride"] = json!(stride);
-        }
-        self.views.push(view);
-        self.bytes.extend(data);
-        let mut accessor = accessor;
-        accessor["bufferView"] = json!(self.views.len() - 1);
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
-
-    fn write(self, dir: &Path, name: &str, mut doc: Value) -> PathBuf {
-        let bin = format!("{name}.bin");
-        std::fs::write(dir.join(&bin), &self.bytes).unwrap();
-        doc["asset"] = json!({"version": "2.0"});
-        doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
-        doc["bufferViews"] = json!(self.views);
-        doc["accessors"] = json!(self.accessors);
-        let path = dir.join(name);
-        std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
-        path
-    }
-}
-
-/// The loaded meshes' vertices in world space, with their normals (mesh space).
-fn world_vertices(scene: &wavetrace::Scene) -> Vec<(Vec3, Option<Vec3>)> {
-    let mut out = Vec::new();
-    for (mesh, transform) in scene.world.query::<(&Mesh, &Transform)>().iter() {
-        for (i, p) in mesh.positions.iter().enumerate() {
-            out.push((
-                transform.0.transform_point3(*p),
-                mesh.normals.get(i).copied(),
-            ));
-        }
-    }
-    out
-}
 
 #[test]
 fn quantized_positions_and_normals_dequantize() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     // Positions as unnormalized u16 in an interleaved view (stride 8: x, y, z, padding),
     // scaled by the node's transform as gltfpack writes them; normals as normalized i8 (VEC3
     // padded to 4 bytes per the alignment rule).
@@ -125,7 +71,7 @@ fn quantized_positions_and_normals_dequantize() {
 #[test]
 fn unnormalized_integer_normals_are_refused_for_the_primitive() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let data = [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
         .iter()
         .flatten()

@@ -14,6 +14,7 @@ mod cli_errors;
 mod cli_import_errors;
 mod common;
 mod cornell;
+mod deform;
 mod determinism;
 mod environment;
 mod furnace;

@@ -10,7 +10,9 @@
 //! [`VertexTangents`] when there is a normal map), its emission an [`Emitter`]; the README
 //! documents the mapping.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_fix, gltf_geometry};
+use super::{
+    Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_deform, gltf_fix, gltf_geometry,
+};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
@@ -155,6 +157,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         .collect();
     stack.reverse(); // visit in document order
     let node_count = document.nodes().len();
+    let node_world = gltf_deform::node_world_transforms(scene.nodes(), node_count, world_from_file);
+    let mut bad_skins = HashSet::new();
     // One warning per bad primitive even when several nodes use its mesh.
     let (mut skip_warned, mut lines_warned) = (HashSet::new(), HashSet::new());
     let (mut primitives_seen, mut primitives_read, mut lines_skipped) = (0usize, 0usize, 0usize);
@@ -182,13 +186,36 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             .or_else(|| node.mesh().and_then(|m| m.name().map(str::to_string)))
             .unwrap_or_else(|| format!("node {}", node.index()));
         if let Some(mesh) = node.mesh() {
+            let joints = node.skin().and_then(|skin| {
+                gltf_deform::joint_matrices(&skin, &node_world, &buffers)
+                    .map_err(|why| {
+                        if bad_skins.insert(skin.index()) {
+                            warnings.push(format!(
+                                "{}: skin {}: {why}; its meshes are shown unposed",
+                                path.display(),
+                                skin.index()
+                            ));
+                        }
+                    })
+                    .ok()
+            });
+            let deform = Deform {
+                weights: node.weights().or(mesh.weights()).unwrap_or(&[]),
+                joints: joints.as_deref(),
+                world_from_node,
+            };
+            // A skinned mesh's vertices come out in world space (see `gltf_deform`).
+            let transform = match deform.joints {
+                Some(_) => Affine3A::IDENTITY,
+                None => world_from_node,
+            };
             for primitive in mesh.primitives() {
                 let imported = primitive
                     .material()
                     .index()
                     .map_or(&default_material, |i| &materials[i]);
                 primitives_seen += 1;
-                let read = read_primitive(&primitive, &mesh, imported, &buffers, path);
+                let read = read_primitive(&primitive, &mesh, imported, &deform, &buffers, path);
                 let (mesh_data, tangents, colors) = match read {
                     Ok(Some(read)) => read,
                     Ok(None) => {
@@ -209,7 +236,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 primitives_read += 1;
                 let entity = world.spawn((
                     Name(name.clone()),
-                    Transform(world_from_node),
+                    Transform(transform),
                     mesh_data,
                     imported.material,
                 ));
@@ -805,11 +832,23 @@ fn metallic_from_specular(diffuse: Rgb, specular: Rgb) -> (Rgb, f32) {
     (base.clamp(Rgb::ZERO, Rgb::ONE), metallic)
 }
 
-/// Reads one primitive's triangles into a [`Mesh`] in node space.
+/// How a node deforms its mesh (see [`gltf_deform`]).
+struct Deform<'a> {
+    /// Morph target weights (the node's, else the mesh's; empty: none).
+    weights: &'a [f32],
+    /// The skin's joint matrices when the node has a skin that could be posed.
+    joints: Option<&'a [Affine3A]>,
+    /// The node's world transform, for skinned vertices without weights.
+    world_from_node: Affine3A,
+}
+
+/// Reads one primitive's triangles into a [`Mesh`], morphed, in node space (in world space
+/// when `deform` skins it).
 fn read_primitive(
     primitive: &gltf::Primitive,
     mesh: &gltf::Mesh,
     material: &ImportedMaterial,
+    deform: &Deform,
     buffers: &[gltf::buffer::Data],
     path: &Path,
 ) -> Result<Option<(Mesh, Option<VertexTangents>, Option<VertexColors>)>> {
@@ -911,7 +950,7 @@ fn read_primitive(
     // Attributes are read here rather than by the `gltf` reader, which takes only floats for
     // positions, normals and tangents: `KHR_mesh_quantization` allows integers.
     let attribute = |semantic: gltf::Semantic| primitive.get(&semantic);
-    let positions: Vec<Vec3> = attribute(gltf::Semantic::Positions)
+    let mut positions: Vec<Vec3> = attribute(gltf::Semantic::Positions)
         .and_then(|a| gltf_geometry::read_floats::<3>(&a, buffers))
         .ok_or_else(|| {
             Error::input(
@@ -924,7 +963,7 @@ fn read_primitive(
         .map(Vec3::from)
         .collect();
     let n = positions.len();
-    let normals: Vec<Vec3> = attribute(gltf::Semantic::Normals)
+    let mut normals: Vec<Vec3> = attribute(gltf::Semantic::Normals)
         .and_then(|a| gltf_geometry::read_floats::<3>(&a, buffers))
         .map(|v| v.into_iter().map(Vec3::from).collect())
         .unwrap_or_default();
@@ -934,13 +973,40 @@ fn read_primitive(
         .and_then(|a| gltf_geometry::read_floats::<2>(&a, buffers))
         .map(|v| v.into_iter().map(Vec2::from).collect())
         .unwrap_or_default();
-    let tangents: Vec<Vec4> = match material.textures.normal {
+    let mut tangents: Vec<Vec4> = match material.textures.normal {
         Some(_) => attribute(gltf::Semantic::Tangents)
             .and_then(|a| gltf_geometry::read_floats::<4>(&a, buffers))
             .map(|v| v.into_iter().map(Vec4::from).collect())
             .unwrap_or_default(),
         None => Vec::new(),
     };
+    {
+        let mut vertices = gltf_deform::Vertices {
+            positions: &mut positions,
+            normals: if normals.len() == n {
+                &mut normals
+            } else {
+                &mut []
+            },
+            tangents: if tangents.len() == n {
+                &mut tangents
+            } else {
+                &mut []
+            },
+        };
+        gltf_deform::apply_morph_targets(primitive, deform.weights, buffers, &mut vertices)
+            .and_then(|()| match deform.joints {
+                Some(joints) => gltf_deform::apply_skin(
+                    primitive,
+                    joints,
+                    deform.world_from_node,
+                    buffers,
+                    &mut vertices,
+                ),
+                None => Ok(()),
+            })
+            .map_err(|message| Error::input(path, at(), message))?;
+    }
     let colors: Vec<Vec4> = reader
         .read_colors(0)
         .map(|it| it.into_rgba_f32().map(Vec4::from).collect())

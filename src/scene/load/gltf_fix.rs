@@ -4,7 +4,8 @@
 //!
 //! Patches (the file stays valid glTF; only data wavetrace does not use is dropped): a scene
 //! without `nodes` gets an empty list; animations (including `KHR_animation_pointer` channels,
-//! which have no `node`) and morph targets are removed with a warning; application-specific
+//! which have no `node`) are removed with a warning, and so are morph targets that name an
+//! accessor the file does not have; application-specific
 //! attributes (`_PRESSURE`, any name starting with `_`) are removed with a warning; a primitive
 //! that names an accessor the file does not have is removed with a warning; a texture's image is
 //! chosen among its sources (`EXT_texture_webp`, the core `source`, `KHR_texture_basisu`).
@@ -102,16 +103,13 @@ fn patch(path: &Path, root: &mut Value, warnings: &mut Vec<String>) {
     }
     let accessor_count = object.get("accessors").map_or(0, array_len);
     let mut app_attributes = BTreeMap::<String, usize>::new();
-    let mut morphed = 0usize;
+    let mut bad_targets = 0usize;
     if let Some(meshes) = object.get_mut("meshes").and_then(Value::as_array_mut) {
         for (m, mesh) in meshes.iter_mut().enumerate() {
             let mesh_name = match mesh.get("name").and_then(Value::as_str) {
                 Some(n) => format!("mesh '{n}' (index {m})"),
                 None => format!("mesh {m}"),
             };
-            if let Some(mesh) = mesh.as_object_mut() {
-                mesh.remove("weights");
-            }
             let Some(primitives) = mesh.get_mut("primitives").and_then(Value::as_array_mut) else {
                 continue;
             };
@@ -122,11 +120,19 @@ fn patch(path: &Path, root: &mut Value, warnings: &mut Vec<String>) {
                 let Some(primitive) = primitive.as_object_mut() else {
                     return true;
                 };
-                if primitive
-                    .remove("targets")
-                    .is_some_and(|t| array_len(&t) > 0)
+                let target_accessors = primitive
+                    .get("targets")
+                    .and_then(Value::as_array)
+                    .into_iter()
+                    .flatten()
+                    .filter_map(Value::as_object)
+                    .flat_map(|t| t.values());
+                if target_accessors
+                    .filter_map(Value::as_u64)
+                    .any(|a| a as usize >= accessor_count)
                 {
-                    morphed += 1;
+                    primitive.remove("targets");
+                    bad_targets += 1;
                 }
                 if let Some(attributes) = primitive
                     .get_mut("attributes")
@@ -167,11 +173,11 @@ fn patch(path: &Path, root: &mut Value, warnings: &mut Vec<String>) {
             names.join(", ")
         ));
     }
-    if morphed > 0 {
+    if bad_targets > 0 {
         warnings.push(format!(
-            "{file}: morph targets are ignored; meshes are shown in their base shape ({morphed} \
-             primitive{})",
-            plural(morphed)
+            "{file}: morph targets that name accessors the file does not have are ignored \
+             ({bad_targets} primitive{})",
+            plural(bad_targets)
         ));
     }
     choose_texture_sources(root);
@@ -309,11 +315,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "primitive",
     );
     let nodes: Vec<gltf::Node> = document.nodes().collect();
-    count(
-        "skins are ignored; skinned meshes are shown unposed",
-        nodes.iter().filter(|n| n.skin().is_some()).count(),
-        "node",
-    );
     count(
         "EXT_mesh_gpu_instancing is ignored: each node is drawn once, without its instances",
         nodes

@@ -8,6 +8,7 @@
 
 mod gltf;
 mod gltf_check;
+mod gltf_deform;
 mod gltf_fix;
 mod gltf_geometry;
 mod obj;
