@@ -150,10 +150,15 @@ fn pole() -> Model {
 
 /// The world position of file-frame point `p` of the placed model (entity "model").
 fn placed(world: &hecs::World, p: [f32; 3]) -> Vec3 {
+    placed_entity(world, "model", p)
+}
+
+/// The world position of point `p` of the placed entity named `name`, in its own frame.
+fn placed_entity(world: &hecs::World, name: &str, p: [f32; 3]) -> Vec3 {
     let (_, t) = world
         .query::<(&Name, &Transform)>()
         .iter()
-        .find(|(n, _)| n.0 == "model")
+        .find(|(n, _)| n.0 == name)
         .map(|(n, t)| (n.0.clone(), *t))
         .expect("the model is in the room");
     // The OBJ loader keeps the file's positions; its transform turns them +Z up.
@@ -169,12 +174,13 @@ struct Measured {
     width: f64,
 }
 
-/// Renders the model alone as a white emitter in the blacked-out room, 128 x 128.
-fn measure(mut world: hecs::World, path: &Path) -> Measured {
+/// Renders the model (the entities named `name`) alone as a white emitter in the
+/// blacked-out room, 128 x 128.
+fn measure(mut world: hecs::World, path: &Path, name: &str) -> Measured {
     let model: Vec<hecs::Entity> = world
         .query::<(hecs::Entity, &Name)>()
         .iter()
-        .filter(|(_, n)| n.0 == "model")
+        .filter(|(_, n)| n.0 == name)
         .map(|(e, _)| e)
         .collect();
     let others: Vec<hecs::Entity> = world
@@ -287,7 +293,7 @@ fn bare_models_stand_on_the_floor_face_the_camera_and_fill_the_image() {
                 model.name
             );
         }
-        let m = measure(scene.world, &path);
+        let m = measure(scene.world, &path, "model");
         report.push(format!(
             "{}: {:.1}% of the pixels, {:.0}% of the height, {:.0}% of the width",
             model.name,
@@ -302,6 +308,28 @@ fn bare_models_stand_on_the_floor_face_the_camera_and_fill_the_image() {
         );
     }
     eprintln!("{}", report.join("\n"));
+}
+
+#[test]
+fn the_readme_model_stands_in_the_room_facing_and_filling_the_camera() {
+    // `assets/suzanne.glb`, a Blender export (one mesh node "Suzanne", no transform), whose
+    // face is glTF's front (+Z): what `wavetrace render assets/suzanne.glb` shows.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/suzanne.glb");
+    let scene = load_scene_with(&path, &LoadOptions::default()).expect("loads");
+    let origin = placed_entity(&scene.world, "Suzanne", [0.0, 0.0, 0.0]);
+    let toward = (placed_entity(&scene.world, "Suzanne", [0.0, 0.0, 1.0]) - origin).normalize();
+    assert!(
+        toward.x < -0.999,
+        "the face looks along {toward}, not at the camera"
+    );
+    let m = measure(scene.world, &path, "Suzanne");
+    // Measured: 18.3% of the pixels at 256 x 256 (examples/coverage.rs), 61% of the height.
+    assert!(
+        m.coverage >= 0.12 && m.height >= 0.40,
+        "Suzanne covers {:.1}% of the pixels, {:.0}% of the height",
+        100.0 * m.coverage,
+        100.0 * m.height
+    );
 }
 
 fn prop_box(world: &hecs::World, name: &str) -> (Vec3, Vec3) {
