@@ -37,6 +37,7 @@ pub(crate) mod geometry;
 pub(crate) mod image_error;
 pub(crate) mod lights;
 pub mod math;
+pub(crate) mod memory;
 pub mod output;
 pub(crate) mod render_scene;
 pub mod scene;

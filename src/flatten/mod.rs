@@ -29,11 +29,40 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+/// Peak resident bytes per primitive that flattening adds to the world it reads: the staging
+/// shapes, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
+/// peaks at about 310 bytes per triangle in all, file and world included).
+const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
+/// The same in address space, which grows faster (allocator arenas, vectors reserved before
+/// they are filled): the 2-million-triangle OBJ needs `ulimit -v` of about 1.1 GB where the
+/// world alone maps about 0.27 GB.
+const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 450;
+
+/// Refuses a world whose render scene would not fit in the memory the process can still
+/// take (see [`crate::memory`]), before anything large is built.
+fn check_memory(world: &hecs::World, path: &Path) -> Result<()> {
+    let triangles: u64 = (world.query::<&Mesh>().iter())
+        .map(|mesh| mesh.indices.len() as u64)
+        .sum();
+    let spheres = world.query::<&crate::scene::Sphere>().iter().count() as u64;
+    let primitives = triangles + spheres;
+    crate::memory::check_fits(
+        path,
+        &format!("its render scene ({primitives} primitives)"),
+        crate::memory::Needed {
+            resident: primitives.saturating_mul(FLATTEN_RESIDENT_PER_PRIMITIVE),
+            address_space: primitives.saturating_mul(FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE),
+        },
+        crate::memory::available(),
+    )
+}
+
 /// Flattens the world into a [`RenderScene`]. `path` names the scene in errors.
 /// The camera used is the first one (the earliest spawned).
 pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
     let start = Instant::now();
     let camera = camera::first_camera(world, path)?;
+    check_memory(world, path)?;
 
     // Primitives in flattening order (meshes in query order, their triangles in index order,
     // then spheres), one group per entity, with the distinct materials they use.

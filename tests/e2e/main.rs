@@ -26,6 +26,7 @@ mod interrupt;
 mod large_obj;
 mod light_units;
 mod materials;
+mod memory;
 mod mis;
 mod next_event;
 mod placement;

@@ -1,0 +1,78 @@
+//! Running out of memory is bad input: a scene whose render scene would not fit in what the
+//! process may take is refused with one clear error and exit code 1, nothing written, where
+//! it used to end in an allocation abort (exit 134) with a backtrace.
+
+use crate::common::{GltfDoc, check_failure};
+use serde_json::json;
+use std::process::Command;
+
+/// Side of the vertex grid of the one mesh's data: 2 x 223^2 = 99,458 triangles.
+const SIDE: usize = 224;
+/// How many distinct meshes draw that data (distinct meshes, so that nothing is shared):
+/// about 10 million triangles, some 4.5 GB of address space to flatten.
+const MESHES: usize = 100;
+
+#[test]
+fn a_scene_too_large_for_the_address_space_is_refused_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = GltfDoc::default();
+    let positions: Vec<[f32; 3]> = (0..SIDE * SIDE)
+        .map(|k| [(k % SIDE) as f32, (k / SIDE) as f32, 0.0])
+        .collect();
+    let position = doc.positions(&positions);
+    let indices: Vec<u8> = (0..SIDE - 1)
+        .flat_map(|j| (0..SIDE - 1).map(move |i| (j * SIDE + i) as u32))
+        .flat_map(|a| {
+            [
+                a,
+                a + 1,
+                a + SIDE as u32 + 1,
+                a,
+                a + SIDE as u32 + 1,
+                a + SIDE as u32,
+            ]
+        })
+        .flat_map(u32::to_le_bytes)
+        .collect();
+    let count = indices.len() / 4;
+    let index = doc.push(
+        indices,
+        None,
+        json!({"componentType": 5125, "count": count, "type": "SCALAR"}),
+    );
+    let primitive = json!({"attributes": {"POSITION": position}, "indices": index});
+    let path = doc.write(
+        dir.path(),
+        "many.gltf",
+        json!({
+            "scenes": [{"nodes": (0..MESHES).collect::<Vec<_>>()}],
+            "nodes": (0..MESHES).map(|m| json!({"mesh": m, "translation": [0.0, 0.0, m as f32]}))
+                .collect::<Vec<_>>(),
+            "meshes": (0..MESHES).map(|_| json!({"primitives": [primitive]})).collect::<Vec<_>>(),
+        }),
+    );
+    let output = dir.path().join("many.png");
+    // 2 GiB of address space: the world (about 0.2 GB of meshes) loads, its render scene
+    // cannot be built.
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 2097152 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render", "--quiet", "--spp", "1", "--width", "8", "--height", "8", "-o",
+        ])
+        .arg(&output)
+        .arg(&path)
+        .output()
+        .unwrap();
+    if let Err(e) = check_failure(
+        &out,
+        1,
+        &["many.gltf", "does not fit in memory", "ulimit -v", "GiB"],
+    ) {
+        panic!("{e}");
+    }
+    assert!(!output.exists(), "no image is written");
+    // many.gltf and many.bin only: no temporary image either.
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+}
