@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
-//!     (--spp 16 | --time 4s) [--seeds 4] [--seed S] [--sampler independent|sobol] \
+//!     (--spp 16 | --time 4s | both) [--seeds 4] [--seed S] [--sampler independent|sobol] \
 //!     [--noise-threshold T [--min-spp N]] [--shadow-rays N] [--roulette-min-bounces N] \
 //!     [--no-mis] [--threads N] [--write out.exr]
 //! ```
@@ -43,8 +43,8 @@ struct Args {
     /// Reference image (linear EXR); the render takes its size.
     #[arg(long)]
     reference: PathBuf,
-    /// Samples per pixel.
-    #[arg(long, conflicts_with = "time")]
+    /// Samples per pixel (with --time: at most this many).
+    #[arg(long)]
     spp: Option<u32>,
     /// Time budget per render: whole passes (samples per pixel) while another one fits.
     #[arg(long, value_parser = humantime::parse_duration)]
@@ -83,8 +83,8 @@ struct Args {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    if args.spp.is_none() == args.time.is_none() {
-        bail!("give either --spp or --time");
+    if args.spp.is_none() && args.time.is_none() {
+        bail!("give --spp, --time or both");
     }
     let reference = read_exr(&args.reference)?;
     let scene = load_scene(&args.scene)?;

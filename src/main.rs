@@ -88,7 +88,7 @@ struct RenderArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
     /// Adaptive sampling: 8x8 tiles stop once every pixel's relative error estimate is below
-    /// this (default 0.01, Cycles' default); 0 turns adaptive sampling off. With --spp,
+    /// this (Cycles' error measure; default 0.05); 0 turns adaptive sampling off. With --spp,
     /// adaptive up to that many samples.
     #[arg(long, value_parser = parse_noise_threshold)]
     noise_threshold: Option<f32>,

@@ -13,7 +13,8 @@ The `error` figures follow wavetrace's `image_error` definitions (MSE over pixel
 channels; relative MSE with `ref^2 + 0.01` in the denominator; the share of the squared error
 held by the worst 1% of pixels). `--mirror` flips each image left to right before comparing,
 for a Mitsuba render against a wavetrace reference if Mitsuba's image comes out mirrored
-(check that the unflipped error is the larger).
+(check that the unflipped error is the larger). `--block N` averages the reference over
+N x N blocks first: a box-filtered reference at 1/N of its size (for smaller renders).
 """
 
 import argparse
@@ -140,6 +141,10 @@ def error(args):
 
     import numpy as np
     reference = np.array(load(args.reference), dtype=np.float64)
+    if args.block > 1:
+        h, w, c = reference.shape
+        n = args.block
+        reference = reference.reshape(h // n, n, w // n, n, c).mean(axis=(1, 3))
     for path in args.images:
         image = np.array(load(path), dtype=np.float64)
         if args.mirror:
@@ -172,6 +177,7 @@ def main():
     e.add_argument("images", nargs="+")
     e.add_argument("--variant", default="llvm_ad_rgb")
     e.add_argument("--mirror", action="store_true")
+    e.add_argument("--block", type=int, default=1)
     args = parser.parse_args()
     {"render": render, "error": error}[args.command](args)
 
