@@ -30,7 +30,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene file (.toml) or a model (.gltf, .glb, .obj) to a PNG or OpenEXR image.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Reproduce the seed report's benchmark tables on the built-in room and print them next
     /// to the report's seconds.
     BenchSeed(BenchSeedArgs),
@@ -207,7 +207,7 @@ fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => run_render(args),
+        Command::Render(args) => run_render(*args),
         Command::BenchSeed(args) => run_bench_seed(args).map(|()| ExitCode::SUCCESS),
     };
     match result {

@@ -162,7 +162,7 @@ impl RenderSettings {
         };
         let fixed_spp = overrides.spp.or(scene.spp);
         let adaptive = match overrides.noise_threshold {
-            Some(t) if t == 0.0 => None,
+            Some(0.0) => None,
             None if fixed_spp.is_some() => None,
             threshold => Some(Adaptive {
                 noise_threshold: threshold.unwrap_or(DEFAULT_NOISE_THRESHOLD),

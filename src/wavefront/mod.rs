@@ -186,7 +186,7 @@ impl ActiveTiles {
     /// below the threshold. Judged at even pass counts from the minimum on, when both halves
     /// of every active pixel's samples are equal in number.
     fn stop_converged(&mut self, film: &Film, passes_done: u32) {
-        if passes_done < self.adaptive.min_spp.max(2) || passes_done % 2 != 0 {
+        if passes_done < self.adaptive.min_spp.max(2) || !passes_done.is_multiple_of(2) {
             return;
         }
         let threshold = self.adaptive.noise_threshold;
