@@ -8,9 +8,13 @@
 //!
 //! ```text
 //! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
-//!     (--spp 16 | --time 4s) [--seeds 4] [--seed S] [--sampler independent|sobol] \
-//!     [--shadow-rays N] [--roulette-min-bounces N] [--no-mis] [--threads N] [--write out.exr]
+//!     (--spp 16 | --time 4s | both) [--seeds 4] [--seed S] [--sampler independent|sobol] \
+//!     [--noise-threshold T [--min-spp N]] [--shadow-rays N] [--roulette-min-bounces N] \
+//!     [--no-mis] [--threads N] [--write out.exr]
 //! ```
+//!
+//! With `--noise-threshold` the render is adaptive (8x8 tiles stop at that threshold; with
+//! `--spp`, at most that many samples); the figures then give the mean samples per pixel.
 //!
 //! The reference should be a high-spp render of the same scene by the same renderer (same
 //! reconstruction filter), with a seed none of the runs use. With several seeds, `--write`
@@ -23,6 +27,7 @@ use std::time::{Duration, Instant};
 use wavetrace::internals::image_error::{ImageError, image_error};
 use wavetrace::math::rng::Sampler;
 use wavetrace::output::read_exr;
+use wavetrace::settings::{Adaptive, DEFAULT_MIN_SPP};
 use wavetrace::{Flow, RenderSettings, flatten, load_scene, render, write_image};
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -38,8 +43,8 @@ struct Args {
     /// Reference image (linear EXR); the render takes its size.
     #[arg(long)]
     reference: PathBuf,
-    /// Samples per pixel.
-    #[arg(long, conflicts_with = "time")]
+    /// Samples per pixel (with --time: at most this many).
+    #[arg(long)]
     spp: Option<u32>,
     /// Time budget per render: whole passes (samples per pixel) while another one fits.
     #[arg(long, value_parser = humantime::parse_duration)]
@@ -53,6 +58,12 @@ struct Args {
     /// Random numbers.
     #[arg(long, value_enum, default_value_t = SamplerArg::Independent)]
     sampler: SamplerArg,
+    /// Adaptive sampling with this noise threshold (default: fixed samples per pixel).
+    #[arg(long)]
+    noise_threshold: Option<f32>,
+    /// Adaptive sampling's minimum samples per pixel.
+    #[arg(long, default_value_t = DEFAULT_MIN_SPP)]
+    min_spp: u32,
     /// Shadow rays per hit (default: the renderer's).
     #[arg(long)]
     shadow_rays: Option<u32>,
@@ -72,8 +83,8 @@ struct Args {
 
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
-    if args.spp.is_none() == args.time.is_none() {
-        bail!("give either --spp or --time");
+    if args.spp.is_none() && args.time.is_none() {
+        bail!("give --spp, --time or both");
     }
     let reference = read_exr(&args.reference)?;
     let scene = load_scene(&args.scene)?;
@@ -83,6 +94,10 @@ fn main() -> anyhow::Result<()> {
         width: reference.width,
         height: reference.height,
         spp: args.spp.unwrap_or(u32::MAX),
+        adaptive: args.noise_threshold.map(|noise_threshold| Adaptive {
+            noise_threshold,
+            min_spp: args.min_spp,
+        }),
         shadow_rays: args.shadow_rays.unwrap_or(defaults.shadow_rays),
         mis: !args.no_mis,
         sampler: match args.sampler {
@@ -98,24 +113,27 @@ fn main() -> anyhow::Result<()> {
         .num_threads(args.threads.unwrap_or(0))
         .build()
         .context("cannot start worker threads")?;
+    base.validate()?;
     let pixels = base.pixel_count();
-    let mut runs: Vec<(f64, u64, ImageError)> = Vec::new();
+    let mut runs: Vec<(f64, f64, ImageError)> = Vec::new();
     for seed in args.seed..args.seed + args.seeds {
         let settings = RenderSettings { seed, ..base };
         let start = Instant::now();
+        let mut last_pass_end = start;
         let (film, stats) = pool.install(|| {
             render(&flat, &settings, |p| {
                 let Some(budget) = args.time else {
                     return Flow::Continue;
                 };
-                let passes = p.samples_done / pixels;
-                if p.samples_done % pixels != 0 || passes == 0 {
+                if !p.pass_ended {
                     return Flow::Continue;
                 }
-                // Stop after a pass if another one of the mean length would overrun.
-                let elapsed = start.elapsed();
-                let per_pass = elapsed / passes as u32;
-                if elapsed + per_pass > budget {
+                // Stop after a pass if another one as long as the last would overrun (the
+                // last, not the mean: adaptive passes shorten as tiles stop).
+                let now = Instant::now();
+                let last_pass = now - last_pass_end;
+                last_pass_end = now;
+                if now - start + last_pass > budget {
                     Flow::Stop
                 } else {
                     Flow::Continue
@@ -125,9 +143,9 @@ fn main() -> anyhow::Result<()> {
         let seconds = start.elapsed().as_secs_f64();
         let image = film.resolve();
         let e = image_error(&image, &reference).context("size differs from the reference")?;
-        let spp = stats.samples / pixels;
+        let spp = stats.samples as f64 / pixels as f64;
         println!(
-            "seed {seed}: {spp} spp in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \
+            "seed {seed}: {spp:.1} spp in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \
              relative mse {:.5}, top 1% of pixels hold {:.1}% of the squared error",
             e.rmse(),
             e.rmse() / e.reference_mean,
@@ -141,8 +159,8 @@ fn main() -> anyhow::Result<()> {
         runs.push((seconds, spp, e));
     }
     let n = runs.len() as f64;
-    let mean = |f: &dyn Fn(&(f64, u64, ImageError)) -> f64| runs.iter().map(f).sum::<f64>() / n;
-    let (seconds, spp) = (mean(&|r| r.0), mean(&|r| r.1 as f64));
+    let mean = |f: &dyn Fn(&(f64, f64, ImageError)) -> f64| runs.iter().map(f).sum::<f64>() / n;
+    let (seconds, spp) = (mean(&|r| r.0), mean(&|r| r.1));
     let (mse, relative) = (mean(&|r| r.2.mse), mean(&|r| r.2.relative_mse));
     // The spread of the MSE over the seeds: its standard error.
     let mse_error =
@@ -154,6 +172,28 @@ fn main() -> anyhow::Result<()> {
         100.0 * mean(&|r| r.2.top_percent_share),
         mse * seconds,
         mse * spp
+    );
+    // Medians resist a run slowed by other work on the machine or struck by a rare firefly.
+    let median = |f: &dyn Fn(&(f64, f64, ImageError)) -> f64| {
+        let mut values: Vec<f64> = runs.iter().map(f).collect();
+        values.sort_by(f64::total_cmp);
+        let mid = values.len() / 2;
+        if values.len() % 2 == 1 {
+            values[mid]
+        } else {
+            0.5 * (values[mid - 1] + values[mid])
+        }
+    };
+    println!(
+        "median of {} runs: {:.1} spp in {:.2} s: rmse {:.5}, mse {:.6}, relative mse {:.5}, \
+         top 1% share {:.1}%",
+        runs.len(),
+        median(&|r| r.1),
+        median(&|r| r.0),
+        median(&|r| r.2.rmse()),
+        median(&|r| r.2.mse),
+        median(&|r| r.2.relative_mse),
+        100.0 * median(&|r| r.2.top_percent_share)
     );
     Ok(())
 }

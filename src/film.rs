@@ -1,4 +1,5 @@
-//! The film: per-pixel sums of sample radiance, and the resolved image.
+//! The film: per-pixel sums of sample radiance and sample counts, the error estimate that
+//! adaptive sampling reads, and the resolved image.
 
 use crate::math::Rgb;
 use rayon::prelude::*;
@@ -12,6 +13,9 @@ pub struct Film {
     /// Height in pixels.
     pub height: u32,
     sum: Vec<[f64; 3]>,
+    /// Sums of each pixel's odd-numbered samples (its second, fourth, ...), for the error
+    /// estimate of adaptive sampling; empty when the film keeps no estimate.
+    odd_sum: Vec<[f64; 3]>,
     samples: Vec<u32>,
     /// Samples discarded because their radiance was NaN or infinite.
     pub rejected_samples: u64,
@@ -25,16 +29,66 @@ impl Film {
             width,
             height,
             sum: vec![[0.0; 3]; n],
+            odd_sum: Vec::new(),
             samples: vec![0; n],
             rejected_samples: 0,
+        }
+    }
+
+    /// An empty film that also keeps the sums of odd-numbered samples, for
+    /// [`Film::pixel_error`] (24 more bytes per pixel).
+    pub fn with_error_estimate(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        Film {
+            odd_sum: vec![[0.0; 3]; n],
+            ..Film::new(width, height)
         }
     }
 
     /// Adds one sample to a pixel; a NaN or infinite sample is counted and discarded.
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
         let i = pixel as usize;
-        let added = accumulate(&mut self.sum[i], &mut self.samples[i], radiance);
+        let odd_sum = self.odd_sum.get_mut(i);
+        let added = accumulate(&mut self.sum[i], odd_sum, &mut self.samples[i], radiance);
         self.rejected_samples += u64::from(!added);
+    }
+
+    /// The pixel's relative error estimate, Cycles' formula: the difference between the mean
+    /// of all its samples and the mean of its odd-numbered half (summed over the channels)
+    /// over the square root of its brightness, so that the threshold means about the same
+    /// visible noise in dark and bright regions (noise is seen relative to brightness, but
+    /// dark regions would never converge with a purely relative error). Infinite without an
+    /// estimate (no odd sums kept, or fewer than two samples). Read it at an even sample
+    /// count, when both halves hold as many samples.
+    pub fn pixel_error(&self, index: usize) -> f32 {
+        let n = self.samples[index];
+        let Some(odd) = self.odd_sum.get(index) else {
+            return f32::INFINITY;
+        };
+        if n < 2 {
+            return f32::INFINITY;
+        }
+        let (all, inv_n) = (self.sum[index], 1.0 / n as f64);
+        let mut difference = 0.0;
+        let mut brightness = 0.0;
+        for c in 0..3 {
+            difference += (all[c] - 2.0 * odd[c]).abs() * inv_n;
+            brightness += all[c] * inv_n;
+        }
+        (difference / (1e-4 + brightness.max(0.0).sqrt())) as f32
+    }
+
+    /// Samples held by the pixel of row-major index `index`.
+    pub fn pixel_samples(&self, index: usize) -> u32 {
+        self.samples[index]
+    }
+
+    /// Fewest, mean and most samples per pixel.
+    pub fn spp_range(&self) -> (u32, f64, u32) {
+        let total: u64 = self.samples.iter().map(|&n| n as u64).sum();
+        let mean = total as f64 / self.samples.len().max(1) as f64;
+        let max = self.samples.iter().copied().max().unwrap_or(0);
+        (self.min_samples(), mean, max)
     }
 
     /// The pixels `pixels` cut into consecutive regions of `size` pixels (the last may be
@@ -45,13 +99,23 @@ impl Film {
         size: usize,
     ) -> impl IndexedParallelIterator<Item = FilmRegion<'_>> {
         let range = pixels.start as usize..pixels.end as usize;
+        // Without odd sums each region gets an empty slice of them.
+        let odd_sums: Vec<&mut [[f64; 3]]> = if self.odd_sum.is_empty() {
+            std::iter::repeat_with(|| &mut [][..])
+                .take(range.len().div_ceil(size))
+                .collect()
+        } else {
+            self.odd_sum[range.clone()].chunks_mut(size).collect()
+        };
         self.sum[range.clone()]
             .par_chunks_mut(size)
             .zip(self.samples[range].par_chunks_mut(size))
+            .zip(odd_sums)
             .enumerate()
-            .map(move |(k, (sum, samples))| FilmRegion {
+            .map(move |(k, ((sum, samples), odd_sum))| FilmRegion {
                 first_pixel: pixels.start + (k * size) as u32,
                 sum,
+                odd_sum,
                 samples,
                 rejected_samples: 0,
             })
@@ -77,6 +141,7 @@ impl Film {
 pub struct FilmRegion<'a> {
     first_pixel: u32,
     sum: &'a mut [[f64; 3]],
+    odd_sum: &'a mut [[f64; 3]],
     samples: &'a mut [u32],
     /// Samples discarded because their radiance was NaN or infinite.
     pub rejected_samples: u64,
@@ -93,20 +158,35 @@ impl FilmRegion<'_> {
     #[inline]
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
         let i = (pixel - self.first_pixel) as usize;
-        let added = accumulate(&mut self.sum[i], &mut self.samples[i], radiance);
+        let odd_sum = self.odd_sum.get_mut(i);
+        let added = accumulate(&mut self.sum[i], odd_sum, &mut self.samples[i], radiance);
         self.rejected_samples += u64::from(!added);
     }
 }
 
-/// Adds a finite sample to a pixel's sum and count; returns false (adding nothing) otherwise.
+/// Adds a finite sample to a pixel's sum and count, and to its odd sum (if kept) when it is
+/// the pixel's second, fourth, ... sample; returns false (adding nothing) otherwise.
 #[inline]
-fn accumulate(sum: &mut [f64; 3], samples: &mut u32, radiance: Rgb) -> bool {
+fn accumulate(
+    sum: &mut [f64; 3],
+    odd_sum: Option<&mut [f64; 3]>,
+    samples: &mut u32,
+    radiance: Rgb,
+) -> bool {
     if !radiance.is_finite() {
         return false;
     }
-    sum[0] += radiance.x as f64;
-    sum[1] += radiance.y as f64;
-    sum[2] += radiance.z as f64;
+    let value = [radiance.x as f64, radiance.y as f64, radiance.z as f64];
+    for c in 0..3 {
+        sum[c] += value[c];
+    }
+    if let Some(odd_sum) = odd_sum
+        && *samples % 2 == 1
+    {
+        for c in 0..3 {
+            odd_sum[c] += value[c];
+        }
+    }
     *samples += 1;
     true
 }
@@ -193,6 +273,24 @@ mod tests {
     }
 
     #[test]
+    fn pixel_error_is_zero_for_constant_samples_and_grows_with_noise() {
+        let mut film = Film::with_error_estimate(3, 1);
+        for k in 0..64 {
+            film.add_sample(0, Rgb::splat(0.5));
+            // Alternating 0 and 1: the halves differ by the most (mean 0.5 either way).
+            film.add_sample(1, Rgb::splat((k % 2) as f32));
+            film.add_sample(2, Rgb::splat(0.5 + 0.01 * ((k * 7919) % 13) as f32));
+        }
+        assert_eq!(film.pixel_error(0), 0.0);
+        // |mean - mean of the odd half| = 0.5 per channel, over sqrt(1.5).
+        let expected = 1.5 / (1e-4 + 1.5f64.sqrt());
+        assert!((film.pixel_error(1) as f64 - expected).abs() < 1e-6);
+        assert!(film.pixel_error(2) > 0.0 && film.pixel_error(2) < film.pixel_error(1));
+        assert_eq!(Film::new(1, 1).pixel_error(0), f32::INFINITY);
+        assert_eq!(film.spp_range(), (64, 64.0, 64));
+    }
+
+    #[test]
     fn regions_filled_in_parallel_match_samples_added_one_by_one() {
         // Two passes over pixels 5..1005 of a 40 x 30 film, some samples NaN or infinite.
         let radiance = |pass: u32, pixel: u32| {
@@ -205,7 +303,10 @@ mod tests {
             }
         };
         let pixels = 5..1005;
-        let (mut one_by_one, mut regions) = (Film::new(40, 30), Film::new(40, 30));
+        let (mut one_by_one, mut regions) = (
+            Film::with_error_estimate(40, 30),
+            Film::with_error_estimate(40, 30),
+        );
         for pass in 0..2 {
             for p in pixels.clone() {
                 one_by_one.add_sample(p, radiance(pass, p));
@@ -233,5 +334,7 @@ mod tests {
         assert_eq!(regions.rejected_samples, one_by_one.rejected_samples);
         assert_eq!(regions.samples, one_by_one.samples);
         assert_eq!(regions.sum, one_by_one.sum);
+        assert_eq!(regions.odd_sum, one_by_one.odd_sum);
+        assert!(regions.odd_sum.iter().any(|s| s[0] != 0.0));
     }
 }

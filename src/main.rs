@@ -30,7 +30,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene file (.toml) or a model (.gltf, .glb, .obj) to a PNG or OpenEXR image.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Reproduce the seed report's benchmark tables on the built-in room and print them next
     /// to the report's seconds.
     BenchSeed(BenchSeedArgs),
@@ -83,13 +83,27 @@ struct RenderArgs {
     /// camera's aspect ratio, square without one).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
     height: Option<u32>,
-    /// Samples per pixel (default: the scene's, else 16; with --time: no limit but the time).
+    /// Exactly this many samples in every pixel (no adaptive sampling). Default: the scene's;
+    /// else adaptive sampling up to 1024 spp and 60 s; with --time: no limit but the time.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     spp: Option<u32>,
-    /// Render for this long (e.g. 30s, 5m, 1h 30m), as many whole samples per pixel as fit,
-    /// then write the image. At least one sample per pixel is always taken.
+    /// Adaptive sampling: 8x8 tiles stop once every pixel's relative error estimate is below
+    /// this (Cycles' error measure; default 0.05); 0 turns adaptive sampling off. With --spp,
+    /// adaptive up to that many samples.
+    #[arg(long, value_parser = parse_noise_threshold)]
+    noise_threshold: Option<f32>,
+    /// Adaptive sampling: samples every pixel takes before its tile may stop (default 16).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(2..))]
+    min_spp: Option<u32>,
+    /// Render for this long (e.g. 30s, 5m, 1h 30m), as many whole samples per pixel as fit
+    /// (adaptive: until the noise threshold too), then write the image. At least one sample
+    /// per pixel is always taken.
     #[arg(long, value_parser = parse_time_budget)]
     time: Option<Duration>,
+    /// Random numbers: independent, or Owen-scrambled Sobol points (default: the scene's,
+    /// else independent).
+    #[arg(long, value_enum)]
+    sampler: Option<SamplerArg>,
     /// Shadow rays per diffuse hit for next-event estimation (default: the scene's, else 1).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_SHADOW_RAYS as i64))]
     shadow_rays: Option<u32>,
@@ -144,6 +158,36 @@ fn parse_environment(text: &str) -> std::result::Result<EnvironmentSource, Strin
     Ok(EnvironmentSource::File(PathBuf::from(text)))
 }
 
+/// `--sampler`: the library's [`Sampler`](wavetrace::math::rng::Sampler), for clap.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SamplerArg {
+    /// Independent uniform numbers.
+    Independent,
+    /// Owen-scrambled Sobol points.
+    Sobol,
+}
+
+impl From<SamplerArg> for wavetrace::math::rng::Sampler {
+    fn from(arg: SamplerArg) -> Self {
+        match arg {
+            SamplerArg::Independent => Self::Independent,
+            SamplerArg::Sobol => Self::Sobol,
+        }
+    }
+}
+
+/// Time cap of a default (adaptive, no --spp, no --time) render: a first image within a
+/// minute even of a scene that does not reach the noise threshold at 1024 spp.
+const ADAPTIVE_TIME_CAP: Duration = Duration::from_secs(60);
+
+fn parse_noise_threshold(text: &str) -> std::result::Result<f32, String> {
+    let threshold: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(threshold.is_finite() && (0.0..=1.0).contains(&threshold)) {
+        return Err(format!("the noise threshold must lie in 0..=1, got {text}"));
+    }
+    Ok(threshold)
+}
+
 fn parse_time_budget(text: &str) -> std::result::Result<Duration, String> {
     let budget = humantime::parse_duration(text).map_err(|e| e.to_string())?;
     if budget.is_zero() {
@@ -163,7 +207,7 @@ fn parse_exposure(text: &str) -> std::result::Result<f32, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => run_render(args),
+        Command::Render(args) => run_render(*args),
         Command::BenchSeed(args) => run_bench_seed(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
@@ -295,23 +339,35 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         let overrides = RenderOverrides {
             width: args.width,
             height: args.height,
-            // With a time budget and no sample count, the budget decides.
-            spp: args.spp.or(args.time.map(|_| u32::MAX)),
+            spp: args.spp,
             shadow_rays: args.shadow_rays,
             mis: Some(!args.no_mis),
             seed: Some(args.seed),
             batch_size: Some(args.batch_size),
-            sampler: None,
+            sampler: args.sampler.map(Into::into),
+            noise_threshold: args.noise_threshold,
+            min_spp: args.min_spp,
         };
-        let settings =
+        let mut settings =
             RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);
+        if args.time.is_some() && args.spp.is_none() {
+            // With a time budget and no sample count, the budget decides (and the noise
+            // threshold, if adaptive).
+            settings.spp = u32::MAX;
+        }
         settings.validate()?;
+        // A default render stops at the noise threshold, 1024 spp or a minute.
+        let time_budget = match (args.time, settings.adaptive, args.spp) {
+            (Some(budget), _, _) => Some(budget),
+            (None, Some(_), None) if scene.defaults.spp.is_none() => Some(ADAPTIVE_TIME_CAP),
+            _ => None,
+        };
 
         if let Some(signal) = received(&stop_signal) {
             eprintln!("wavetrace: {} before rendering; no image written", signal_name(signal));
             return Ok(ExitCode::from(128 + signal as u8));
         }
-        let bar = match (args.quiet, args.time) {
+        let bar = match (args.quiet, time_budget) {
             (true, _) => ProgressBar::hidden(),
             (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
             (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
@@ -328,20 +384,40 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 args.scene.display(),
                 settings.width,
                 settings.height,
-                match args.time {
-                    Some(t) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
-                    Some(t) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
-                    None => format!("{} spp", settings.spp),
+                match (time_budget, settings.adaptive) {
+                    (Some(t), Some(a)) if settings.spp == u32::MAX => format!(
+                        "adaptive (noise threshold {}, at least {} spp) for up to {}",
+                        a.noise_threshold,
+                        a.min_spp,
+                        humantime::format_duration(t)
+                    ),
+                    (Some(t), Some(a)) => format!(
+                        "adaptive (noise threshold {}, {}-{} spp) for up to {}",
+                        a.noise_threshold,
+                        a.min_spp,
+                        settings.spp,
+                        humantime::format_duration(t)
+                    ),
+                    (None, Some(a)) => format!(
+                        "adaptive (noise threshold {}, {}-{} spp)",
+                        a.noise_threshold, a.min_spp, settings.spp
+                    ),
+                    (Some(t), None) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
+                    (Some(t), None) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
+                    (None, None) => format!("{} spp", settings.spp),
                 }
             );
         }
         let start = Instant::now();
-        let mut budget = args.time.map(|b| TimeBudget::new(start, b));
+        let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
         let (film, stats) = render(&flat, &settings, |p| {
-            let pass_ended = p.samples_done % settings.pixel_count() == 0;
+            let pass_ended = p.pass_ended;
             match &budget {
                 Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
-                None => bar.set_position(p.samples_done),
+                None => {
+                    bar.set_length(p.samples_total);
+                    bar.set_position(p.samples_done);
+                }
             }
             if received(&stop_signal).is_some() {
                 return Flow::Stop;
@@ -468,8 +544,15 @@ fn received(stop_signal: &AtomicI32) -> Option<i32> {
 
 /// "16 spp", or for a render stopped inside a pass "3-4 spp (4 in 1200 of 6400 pixels)":
 /// the film averages each pixel over its own sample count, so every pixel is an unbiased
-/// estimate, but the pixels of the unfinished pass hold one sample more.
+/// estimate, but the pixels of the unfinished pass hold one sample more. Adaptive: "16-1024
+/// spp (mean 87.5)".
 fn samples_held(stats: &RenderStats, pixel_count: u64) -> String {
+    if stats.adaptive {
+        return format!(
+            "{}-{} spp (mean {:.1}, adaptive)",
+            stats.spp_min, stats.spp_max, stats.spp_mean
+        );
+    }
     let extra = stats.samples % pixel_count;
     if extra == 0 {
         format!("{} spp", stats.complete_spp)

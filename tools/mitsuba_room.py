@@ -7,11 +7,14 @@ which needs libLLVM, or scalar_rgb).
 
     python3 tools/mitsuba_room.py render scenes/room.toml out.exr --spp 16 --seed 1 \
         [--size 128] [--filter box|gaussian] [--rr-depth 5] [--variant llvm_ad_rgb]
-    python3 tools/mitsuba_room.py error reference.exr a.exr [b.exr ...]
+    python3 tools/mitsuba_room.py error reference.exr a.exr [b.exr ...] [--mirror]
 
-Mitsuba's image may be the mirror image of wavetrace's: compare Mitsuba renders with a
-Mitsuba reference only. The `error` figures follow wavetrace's `image_error` definitions
-(MSE over pixels and channels; relative MSE with `ref^2 + 0.01` in the denominator).
+The `error` figures follow wavetrace's `image_error` definitions (MSE over pixels and
+channels; relative MSE with `ref^2 + 0.01` in the denominator; the share of the squared error
+held by the worst 1% of pixels). `--mirror` flips each image left to right before comparing,
+for a Mitsuba render against a wavetrace reference if Mitsuba's image comes out mirrored
+(check that the unflipped error is the larger). `--block N` averages the reference over
+N x N blocks first: a box-filtered reference at 1/N of its size (for smaller renders).
 """
 
 import argparse
@@ -131,19 +134,30 @@ def render(args):
 def error(args):
     import mitsuba as mi
     mi.set_variant(args.variant)
-    import drjit as dr
 
     def load(path):
         return mi.TensorXf(mi.Bitmap(path).convert(mi.Bitmap.PixelFormat.RGB,
                                                   mi.Struct.Type.Float32, srgb_gamma=False))
 
-    reference = load(args.reference)
+    import numpy as np
+    reference = np.array(load(args.reference), dtype=np.float64)
+    if args.block > 1:
+        h, w, c = reference.shape
+        n = args.block
+        reference = reference.reshape(h // n, n, w // n, n, c).mean(axis=(1, 3))
     for path in args.images:
-        image = load(path)
-        d2 = dr.square(image - reference)
-        mse = dr.mean(d2.array)
-        relative = dr.mean((d2 / (dr.square(reference) + 0.01)).array)
-        print(f"{path}: mse {float(mse):.6f}, relative mse {float(relative):.5f}")
+        image = np.array(load(path), dtype=np.float64)
+        if args.mirror:
+            image = image[:, ::-1, :]
+        d2 = np.square(image - reference)
+        mse = d2.mean()
+        relative = (d2 / (np.square(reference) + 0.01)).mean()
+        # The worst 1% of pixels (at least one), as wavetrace's image_error.
+        per_pixel = np.sort(d2.sum(axis=2).ravel())
+        top = max(per_pixel.size // 100, 1)
+        share = per_pixel[-top:].sum() / per_pixel.sum() if per_pixel.sum() > 0 else 0.0
+        print(f"{path}: mse {mse:.6f}, relative mse {relative:.5f}, "
+              f"top 1% of pixels hold {100 * share:.1f}% of the squared error")
 
 
 def main():
@@ -162,6 +176,8 @@ def main():
     e.add_argument("reference")
     e.add_argument("images", nargs="+")
     e.add_argument("--variant", default="llvm_ad_rgb")
+    e.add_argument("--mirror", action="store_true")
+    e.add_argument("--block", type=int, default=1)
     args = parser.parse_args()
     {"render": render, "error": error}[args.command](args)
 

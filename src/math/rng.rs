@@ -99,7 +99,8 @@ pub fn uniform2(key: u64, bounce: u32, dimension: u32) -> Vec2 {
 
 /// Which numbers drive the paths. Either way every number is a pure function of (seed, pixel,
 /// sample index, bounce, dimension): images never depend on threads or batches.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Sampler {
     /// Independent uniform numbers from a counter-based hash.
     #[default]

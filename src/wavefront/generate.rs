@@ -7,20 +7,24 @@ use crate::math::rng::{Sampler, dim};
 use std::ops::Range;
 
 /// Starts one path per pixel of `pixels` for sample `sample_index` (numbers from `sampler`): resets the path state and
-/// writes the camera rays (box filter: the sample is uniform inside its pixel).
+/// writes the camera rays (box filter: the sample is uniform inside its pixel). With
+/// `active` (a flag per pixel of the film: adaptive sampling), only the active pixels.
+#[allow(clippy::too_many_arguments)]
 pub fn generate_camera_rays(
     camera: &PinholeCamera,
     seed: u64,
     sampler: Sampler,
     pixels: Range<u32>,
+    active: Option<&[bool]>,
     sample_index: u32,
     paths: &mut PathState,
     rays: &mut RayBatch,
 ) {
-    let n = pixels.len();
+    let is_active = |p: &u32| active.is_none_or(|a| a[*p as usize]);
+    let n = pixels.clone().filter(is_active).count();
     paths.resize(n);
     rays.resize(n);
-    for (i, pixel) in pixels.enumerate() {
+    for (i, pixel) in pixels.filter(is_active).enumerate() {
         let key = sampler.path_key(seed, pixel, sample_index);
         paths.pixel[i] = pixel;
         paths.rng_key[i] = key;

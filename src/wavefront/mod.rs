@@ -6,6 +6,12 @@
 //! batches are traced in parallel, one per thread at a time. A thread's batch stays in its
 //! own cache from stage to stage (the shadow rays shading writes are traced right after),
 //! and the threads meet only between rounds of batches, not after every stage and bounce.
+//!
+//! With adaptive sampling ([`crate::settings::Adaptive`]) the pixels are grouped in tiles of
+//! [`TILE`] x [`TILE`]; between passes, a tile whose pixels' error estimates are all below the
+//! threshold stops for good, and later passes trace only the pixels of the tiles still going.
+//! The decisions read only the film, after whole passes, so the image still does not depend
+//! on threads or batches.
 
 pub mod batch;
 pub mod generate;
@@ -20,7 +26,7 @@ use crate::camera::PinholeCamera;
 use crate::error::Result;
 use crate::film::{Film, FilmRegion};
 use crate::render_scene::RenderScene;
-use crate::settings::RenderSettings;
+use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use rayon::prelude::*;
 use shade::ShadeParams;
@@ -34,8 +40,10 @@ use std::time::{Duration, Instant};
 pub struct Progress {
     /// Paths (samples) finished so far.
     pub samples_done: u64,
-    /// Paths in the whole render.
+    /// Paths in the whole render (with adaptive sampling: at most, if no more tiles stop).
     pub samples_total: u64,
+    /// Whether this report ends a pass (every pixel still sampled has one more sample).
+    pub pass_ended: bool,
 }
 
 /// What the progress callback wants.
@@ -71,22 +79,31 @@ pub fn render(
     let pixel_count = settings.width * settings.height;
     let batch_size = paths_per_batch(settings);
     let round_size = ROUND_PATHS.max(batch_size);
-    let mut film = Film::new(settings.width, settings.height);
+    let mut film = match settings.adaptive {
+        Some(_) => Film::with_error_estimate(settings.width, settings.height),
+        None => Film::new(settings.width, settings.height),
+    };
+    let mut tiles = settings
+        .adaptive
+        .map(|a| ActiveTiles::new(settings.width, settings.height, a));
     let mut stats = RenderStats::default();
-    let samples_total = pixel_count as u64 * settings.spp as u64;
+    let mut samples_total = pixel_count as u64 * settings.spp as u64;
     let spare_buffers = BufferPool {
         shadow_rays_per_path: settings.shadow_rays.max(1) as usize,
         spare: Mutex::new(Vec::new()),
     };
 
     'passes: for sample_index in 0..settings.spp {
-        let batch = Batch {
-            scene,
-            camera: &camera,
-            settings,
-            sample_index,
-        };
-        for first in (0..pixel_count).step_by(round_size as usize) {
+        let rounds = (0..pixel_count).step_by(round_size as usize);
+        let last_round = rounds.len() - 1;
+        for (round_number, first) in rounds.enumerate() {
+            let batch = Batch {
+                scene,
+                camera: &camera,
+                settings,
+                sample_index,
+                active: tiles.as_ref().map(|t| &t.pixel_active[..]),
+            };
             let pixels = first..(first + round_size).min(pixel_count);
             let round = film
                 .regions_mut(pixels, batch_size as usize)
@@ -96,20 +113,105 @@ pub fn render(
                 )
                 .reduce(RenderStats::default, RenderStats::merged);
             stats = stats.merged(round);
+            let pass_ended = round_number == last_round;
+            if pass_ended && let Some(tiles) = &mut tiles {
+                let passes_done = sample_index + 1;
+                tiles.stop_converged(&film, passes_done);
+                // What is left: the samples so far and the active pixels' remaining passes.
+                samples_total =
+                    stats.samples + tiles.active_pixels() * (settings.spp - passes_done) as u64;
+            }
             if progress(Progress {
                 samples_done: stats.samples,
                 samples_total,
+                pass_ended,
             }) == Flow::Stop
             {
                 stats.interrupted = stats.samples < samples_total;
                 break 'passes;
             }
         }
+        if tiles.as_ref().is_some_and(|t| t.active_pixels() == 0) {
+            break;
+        }
     }
     film.rejected_samples = stats.rejected_samples;
-    stats.complete_spp = (stats.samples / pixel_count as u64) as u32;
+    stats.complete_spp = match tiles {
+        Some(_) => film.min_samples(),
+        None => (stats.samples / pixel_count as u64) as u32,
+    };
+    (stats.spp_min, stats.spp_mean, stats.spp_max) = film.spp_range();
+    stats.adaptive = settings.adaptive.is_some();
     stats.wall_time = start.elapsed();
     Ok((film, stats))
+}
+
+/// Side of adaptive sampling's tiles, in pixels: a tile's decision rests on 64 pixels' error
+/// estimates (one pixel's, with few samples, is itself noisy), and stopping whole tiles
+/// leaves no lone unconverged pixel among stopped ones.
+pub const TILE: u32 = 8;
+
+/// Adaptive sampling's state: which tiles still take samples.
+struct ActiveTiles {
+    width: u32,
+    height: u32,
+    adaptive: Adaptive,
+    tiles_x: u32,
+    tile_active: Vec<bool>,
+    /// The same, per pixel, for the generate stage.
+    pixel_active: Vec<bool>,
+    active_pixels: u64,
+}
+
+impl ActiveTiles {
+    fn new(width: u32, height: u32, adaptive: Adaptive) -> Self {
+        let tiles_x = width.div_ceil(TILE);
+        let tiles_y = height.div_ceil(TILE);
+        ActiveTiles {
+            width,
+            height,
+            adaptive,
+            tiles_x,
+            tile_active: vec![true; (tiles_x * tiles_y) as usize],
+            pixel_active: vec![true; (width * height) as usize],
+            active_pixels: width as u64 * height as u64,
+        }
+    }
+
+    fn active_pixels(&self) -> u64 {
+        self.active_pixels
+    }
+
+    /// After `passes_done` whole passes: stops the tiles whose every pixel's error estimate is
+    /// below the threshold. Judged at even pass counts from the minimum on, when both halves
+    /// of every active pixel's samples are equal in number.
+    fn stop_converged(&mut self, film: &Film, passes_done: u32) {
+        if passes_done < self.adaptive.min_spp.max(2) || !passes_done.is_multiple_of(2) {
+            return;
+        }
+        let threshold = self.adaptive.noise_threshold;
+        let (width, height, tiles_x) = (self.width, self.height, self.tiles_x);
+        for (tile, active) in self.tile_active.iter_mut().enumerate() {
+            if !*active {
+                continue;
+            }
+            let (tx, ty) = (tile as u32 % tiles_x, tile as u32 / tiles_x);
+            let xs = tx * TILE..((tx + 1) * TILE).min(width);
+            let ys = ty * TILE..((ty + 1) * TILE).min(height);
+            let pixels = || {
+                let xs = xs.clone();
+                ys.clone()
+                    .flat_map(move |y| xs.clone().map(move |x| (y * width + x) as usize))
+            };
+            if pixels().all(|p| film.pixel_error(p) < threshold) {
+                *active = false;
+                for p in pixels() {
+                    self.pixel_active[p] = false;
+                }
+                self.active_pixels -= (xs.len() * ys.len()) as u64;
+            }
+        }
+    }
 }
 
 /// Work buffers not in use, so that every job of every round reuses the buffers (and the
@@ -178,6 +280,8 @@ struct Batch<'a> {
     camera: &'a PinholeCamera,
     settings: &'a RenderSettings,
     sample_index: u32,
+    /// Adaptive sampling: which pixels take this sample.
+    active: Option<&'a [bool]>,
 }
 
 impl Batch<'_> {
@@ -193,6 +297,7 @@ impl Batch<'_> {
                 settings.seed,
                 settings.sampler,
                 film.pixels(),
+                self.active,
                 self.sample_index,
                 &mut b.paths,
                 &mut b.rays,

@@ -25,6 +25,14 @@ pub struct RenderStats {
     pub complete_spp: u32,
     /// Whether the render stopped before all samples were taken.
     pub interrupted: bool,
+    /// Whether sampling was adaptive (the summary then reports the spread of samples).
+    pub adaptive: bool,
+    /// Fewest samples any pixel holds.
+    pub spp_min: u32,
+    /// Mean samples per pixel.
+    pub spp_mean: f64,
+    /// Most samples any pixel holds.
+    pub spp_max: u32,
 }
 
 /// Names of the stages in [`RenderStats::stage_time`] order.
@@ -77,6 +85,12 @@ impl RenderStats {
             self.shadow_rays,
             shares.join(", ")
         );
+        if self.adaptive {
+            line += &format!(
+                "; adaptive: spp min {}, mean {:.1}, max {}",
+                self.spp_min, self.spp_mean, self.spp_max
+            );
+        }
         if self.capped_paths > 0 {
             line += &format!("; {} paths cut at the depth cap", self.capped_paths);
         }

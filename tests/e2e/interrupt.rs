@@ -168,6 +168,8 @@ fn time_budget_renders_whole_passes_then_writes() {
     let start = Instant::now();
     let out = Command::new(env!("CARGO_BIN_EXE_wavetrace"))
         .args(["render", "--width", "16", "--height", "16", "--time", "2s"])
+        // Fixed passes: without a sample count the render would be adaptive.
+        .args(["--noise-threshold", "0"])
         .arg(&scene)
         .arg("-o")
         .arg(&output)

@@ -8,6 +8,7 @@
 //! command-line tests run the binary as a child, and a test that measures the whole process
 //! runs itself alone in a child process (`common::run_alone`).
 
+mod adaptive;
 mod alpha;
 mod cli;
 mod cli_errors;

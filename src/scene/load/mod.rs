@@ -201,6 +201,8 @@ pub struct SceneDefaults {
     pub spp: Option<u32>,
     /// Shadow rays per diffuse hit.
     pub shadow_rays: Option<u32>,
+    /// Where the random numbers come from (`sampler = "independent" | "sobol"`).
+    pub sampler: Option<crate::math::rng::Sampler>,
 }
 
 impl SceneDefaults {
@@ -211,6 +213,7 @@ impl SceneDefaults {
             height: over.height.or(self.height),
             spp: over.spp.or(self.spp),
             shadow_rays: over.shadow_rays.or(self.shadow_rays),
+            sampler: over.sampler.or(self.sampler),
         }
     }
 }

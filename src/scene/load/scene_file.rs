@@ -138,6 +138,7 @@ struct RenderDef {
     height: Option<Spanned<u32>>,
     spp: Option<Spanned<u32>>,
     shadow_rays: Option<Spanned<u32>>,
+    sampler: Option<crate::math::rng::Sampler>,
 }
 
 impl RenderDef {
@@ -173,6 +174,7 @@ impl RenderDef {
             height: check(&self.height, 1..=MAX_IMAGE_SIDE, "height")?,
             spp: check(&self.spp, 1..=u32::MAX, "spp (samples per pixel)")?,
             shadow_rays: check(&self.shadow_rays, 1..=MAX_SHADOW_RAYS, "shadow_rays")?,
+            sampler: self.sampler,
         };
         if let (Some(w), Some(h), Some(at)) = (defaults.width, defaults.height, &self.height)
             && w as u64 * h as u64 > MAX_PIXELS
