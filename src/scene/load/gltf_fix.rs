@@ -29,6 +29,7 @@ pub(super) const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_texture_transform",
     "KHR_texture_basisu",
     "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
 ];
 
@@ -39,7 +40,6 @@ const KNOWN: &[&str] = &[
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
     "KHR_animation_pointer",
-    "EXT_mesh_gpu_instancing",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_materials_volume",
@@ -312,14 +312,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
     count(
         "skins are ignored; skinned meshes are shown unposed",
         nodes.iter().filter(|n| n.skin().is_some()).count(),
-        "node",
-    );
-    count(
-        "EXT_mesh_gpu_instancing is ignored: each node is drawn once, without its instances",
-        nodes
-            .iter()
-            .filter(|n| n.extension_value("EXT_mesh_gpu_instancing").is_some())
-            .count(),
         "node",
     );
     count(
