@@ -968,6 +968,9 @@ fn instance_transforms(
     })())
 }
 
+/// A primitive as read: its mesh, and its tangents and colours if it has them.
+type ReadPrimitive = (Mesh, Option<VertexTangents>, Option<VertexColors>);
+
 /// Reads one primitive's triangles into a [`Mesh`] in node space.
 fn read_primitive(
     primitive: &gltf::Primitive,
@@ -975,7 +978,7 @@ fn read_primitive(
     material: &ImportedMaterial,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<Option<(Mesh, Option<VertexTangents>, Option<VertexColors>)>> {
+) -> Result<Option<ReadPrimitive>> {
     let mesh_name = match mesh.name() {
         Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
         None => format!("mesh {}", mesh.index()),
