@@ -47,7 +47,9 @@ pub(crate) mod wavefront;
 
 pub use error::{Error, Result};
 pub use film::{Film, Image, Pixels};
-pub use flatten::{FlattenTimes, flatten};
+pub use flatten::{
+    FlattenTimes, INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing, flatten, flatten_with,
+};
 pub use output::write_image;
 pub use render_scene::RenderScene;
 pub use scene::{Scene, load_scene};

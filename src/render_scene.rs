@@ -6,6 +6,7 @@
 
 use crate::accel::ClosestHitPath;
 use crate::accel::build::Bvh4;
+use crate::accel::instances::Instances;
 use crate::accel::leaf_prims::{LeafPrim, closest_in_leaf, closest_in_node};
 use crate::accel::occluders::Occluders;
 use crate::accel::ray_batches;
@@ -84,6 +85,15 @@ pub struct RenderScene {
     /// Per slot, the index of the primitive in flattening order (meshes in query order, their
     /// triangles in index order, then spheres), to map hits back to the input.
     pub(crate) source_index: Vec<u32>,
+    /// The instanced meshes (see [`crate::accel::instances`]): their primitives have the
+    /// virtual slots from `leaf_prims.len()` to `slot_count`; `None` when nothing is
+    /// instanced (most scenes, which then run exactly the flat paths).
+    pub(crate) instances: Option<Instances>,
+    /// Number of slots: the flat part's and the instances' virtual ones.
+    pub(crate) slot_count: usize,
+    /// Whether some mesh has vertex colours (then `vertex_colors` is filled for the flat
+    /// part, and the prototypes have theirs).
+    pub(crate) has_vertex_colors: bool,
     /// The camera.
     pub(crate) camera: Camera,
     /// Things skipped while flattening (degenerate triangles, ...), for the user to see.
@@ -108,15 +118,30 @@ impl RenderScene {
         self.times
     }
 
-    /// Number of primitives (BVH slots).
+    /// Number of primitives drawn (slots, an instanced mesh's primitives once per instance).
     pub fn primitive_count(&self) -> usize {
+        self.slot_count
+    }
+
+    /// Number of primitives stored (an instanced mesh's primitives once).
+    pub fn stored_primitive_count(&self) -> usize {
         self.leaf_prims.len()
+            + self
+                .instances
+                .as_ref()
+                .map_or(0, |i| i.prototypes.iter().map(|p| p.leaf_prims.len()).sum())
+    }
+
+    /// Number of instances of instanced meshes (0 when nothing is instanced).
+    pub fn instance_count(&self) -> usize {
+        self.instances.as_ref().map_or(0, |i| i.instances.len())
     }
 
     /// The index in flattening order of the primitive in slot `slot` (see
-    /// [`crate::flatten()`]), to map hits back to the input.
+    /// [`crate::flatten()`]), to map hits back to the input; `u32::MAX` for the primitives of
+    /// instanced meshes.
     pub fn source_index(&self, slot: usize) -> u32 {
-        self.source_index[slot]
+        self.source_index.get(slot).copied().unwrap_or(u32::MAX)
     }
 
     /// Depth of the BVH (a root alone has depth 1).
@@ -149,20 +174,90 @@ impl RenderScene {
         self.textured_emission.iter().flatten().count()
     }
 
-    /// Per-vertex shading normals of the primitive in slot `slot` (all zero when flat).
+    /// Per-vertex shading normals of the primitive in slot `slot` (all zero when flat), in
+    /// world space.
+    #[inline(always)]
     pub fn vertex_normals(&self, slot: usize) -> [Vec3; 3] {
-        self.vertex_normals[slot]
+        match self.vertex_normals.get(slot) {
+            Some(n) if slot < self.leaf_prims.len() => *n,
+            _ => self.instanced(slot).vertex_normals(slot as u32),
+        }
     }
 
-    /// The primitive in slot `slot`.
+    /// The instanced part, for a slot past the flat part.
+    #[inline(always)]
+    fn instanced(&self, slot: usize) -> &Instances {
+        debug_assert!(slot >= self.leaf_prims.len());
+        self.instances.as_ref().expect("an instanced slot")
+    }
+
+    /// Texture coordinates of the vertices of the primitive in slot `slot`.
+    #[inline(always)]
+    pub(crate) fn vertex_uvs(&self, slot: usize) -> [Vec2; 3] {
+        if slot < self.leaf_prims.len() {
+            self.vertex_uvs[slot]
+        } else {
+            self.instanced(slot).vertex_uvs(slot as u32)
+        }
+    }
+
+    /// Linear RGBA vertex colours of the primitive in slot `slot` (white without); only for
+    /// scenes with vertex colours ([`Self::has_vertex_colors`]).
+    #[inline(always)]
+    pub(crate) fn vertex_colors(&self, slot: usize) -> [Vec4; 3] {
+        if slot < self.leaf_prims.len() {
+            self.vertex_colors[slot]
+        } else {
+            self.instanced(slot).vertex_colors(slot as u32)
+        }
+    }
+
+    /// Whether some mesh has vertex colours.
+    #[inline(always)]
+    pub(crate) fn has_vertex_colors(&self) -> bool {
+        self.has_vertex_colors
+    }
+
+    /// World-space tangents of the vertices of the primitive in slot `slot`; only for scenes
+    /// with normal maps.
+    #[inline(always)]
+    pub(crate) fn vertex_tangents(&self, slot: usize) -> [Vec4; 3] {
+        if slot < self.leaf_prims.len() {
+            self.vertex_tangents[slot]
+        } else {
+            self.instanced(slot).vertex_tangents(slot as u32)
+        }
+    }
+
+    /// Material index of the primitive in slot `slot`.
+    #[inline(always)]
+    pub(crate) fn material_of(&self, slot: usize) -> u32 {
+        if slot < self.leaf_prims.len() {
+            self.material[slot]
+        } else {
+            self.instanced(slot).material(slot as u32)
+        }
+    }
+
+    /// Light index of the primitive in slot `slot`, or [`NO_EMITTER`] (always for instanced
+    /// meshes, which are never emitters).
+    #[inline(always)]
+    pub(crate) fn emitter_of(&self, slot: usize) -> u32 {
+        self.emitter.get(slot).copied().unwrap_or(NO_EMITTER)
+    }
+
+    /// The primitive in slot `slot`, in world space.
     #[inline(always)]
     pub fn shape(&self, slot: usize) -> Shape {
-        self.leaf_prims[slot].shape()
+        match self.leaf_prims.get(slot) {
+            Some(prim) => prim.shape(),
+            None => self.instanced(slot).shape(slot as u32),
+        }
     }
 
-    /// The primitives in slot order.
+    /// The primitives in slot order (instanced ones in world space, once per instance).
     pub fn shapes(&self) -> impl ExactSizeIterator<Item = Shape> + '_ {
-        self.leaf_prims.iter().map(LeafPrim::shape)
+        (0..self.slot_count).map(|slot| self.shape(slot))
     }
 
     /// Closest primitive along the ray within `[0, t_max]`: its BVH slot and distance.
@@ -182,6 +277,29 @@ impl RenderScene {
     /// that do not cover the point (see [`crate::alpha`]) are passed through.
     #[inline]
     pub(crate) fn closest_covered_hit(
+        &self,
+        stack: &mut TraversalStack,
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+        key: RayKey,
+    ) -> Option<(u32, f32)> {
+        let flat = self.closest_flat_hit(stack, origin, direction, t_max, key);
+        match &self.instances {
+            None => flat,
+            Some(instances) => {
+                let t_max = flat.map_or(t_max, |(_, t)| t);
+                let mut inner = TraversalStack::default();
+                instances
+                    .closest_hit(stack, &mut inner, origin, direction, t_max)
+                    .or(flat)
+            }
+        }
+    }
+
+    /// [`Self::closest_covered_hit`] among the flat part's primitives.
+    #[inline(always)]
+    fn closest_flat_hit(
         &self,
         stack: &mut TraversalStack,
         origin: Vec3A,
@@ -248,6 +366,22 @@ impl RenderScene {
         direction: Vec3A,
         t_max: f32,
     ) -> bool {
+        self.occluded_flat(stack, origin, direction, t_max)
+            || self.instances.as_ref().is_some_and(|instances| {
+                let mut inner = TraversalStack::default();
+                instances.occluded(stack, &mut inner, origin, direction, t_max)
+            })
+    }
+
+    /// [`Self::occluded`] by the flat part's primitives.
+    #[inline(always)]
+    fn occluded_flat(
+        &self,
+        stack: &mut TraversalStack,
+        origin: Vec3A,
+        direction: Vec3A,
+        t_max: f32,
+    ) -> bool {
         let prims = &self.leaf_prims;
         if !self.alpha_of_slot.is_empty() {
             let key = RayKey::default();
@@ -286,11 +420,27 @@ impl RenderScene {
         packet: &Packet,
         key: RayKey,
     ) -> u32 {
-        if self.alpha_of_slot.is_empty() {
+        let mut blocked = if self.alpha_of_slot.is_empty() {
             self.occluded_packet_walk::<false>(stack, packet, key)
         } else {
             self.occluded_packet_walk::<true>(stack, packet, key)
+        };
+        if let Some(instances) = &self.instances {
+            // The instanced geometry has no packet walk: each ray the flat part leaves open
+            // is traced alone through the two-level structure.
+            let rays = (1u32 << packet.directions.len()) - 1; // at most PACKET_SIZE = 16
+            let mut open = rays & !blocked;
+            let mut inner = TraversalStack::default();
+            while open != 0 {
+                let k = open.trailing_zeros() as usize;
+                open &= open - 1;
+                let (d, t_max) = (packet.directions[k], packet.t_max[k]);
+                if instances.occluded(stack, &mut inner, packet.origin, d, t_max) {
+                    blocked |= 1 << k;
+                }
+            }
         }
+        blocked
     }
 
     /// The walk of [`Self::occluded_covered_packet`], with the coverage test if `ALPHA`.
@@ -381,10 +531,16 @@ impl RenderScene {
     /// sorting to pay (or empty).
     fn sort_bounds(&self) -> Option<Aabb> {
         let footprint = std::mem::size_of_val(&self.leaf_prims[..])
-            + std::mem::size_of_val(&self.bvh.nodes[..]);
-        self.bvh
-            .bounds()
-            .filter(|_| footprint > ray_batches::SORT_ABOVE_BYTES)
+            + std::mem::size_of_val(&self.bvh.nodes[..])
+            + self.instances.as_ref().map_or(0, Instances::bytes);
+        let bounds = match (
+            self.bvh.bounds(),
+            self.instances.as_ref().and_then(|i| i.tlas.bounds()),
+        ) {
+            (Some(a), Some(b)) => Some(a.union(&b)),
+            (a, b) => a.or(b),
+        };
+        bounds.filter(|_| footprint > ray_batches::SORT_ABOVE_BYTES)
     }
 }
 
@@ -393,6 +549,7 @@ mod tests {
     use super::*;
     use crate::accel::leaf_prims::{FlatPrimitives, node_triangles};
     use crate::accel::reference;
+    use crate::geometry::TriangleGeom;
     use crate::math::rng::{path_key, uniform};
     use crate::math::{Affine3A, Vec3};
     use crate::scene::{Camera, Material, Mesh, Sphere, Transform};
@@ -577,6 +734,212 @@ mod tests {
                 blocked > 200 && open > 200,
                 "{triangles}: {blocked} blocked, {open} open"
             );
+        }
+    }
+
+    /// A scene with instanced meshes: `flat` random triangles and a few spheres in the flat
+    /// part, and a shared mesh of 300 random triangles drawn by six instances (translated,
+    /// turned, scaled non-uniformly, mirrored), all in the 10-unit cube.
+    fn instanced_scene(flat: u32) -> RenderScene {
+        let world = instanced_world(flat);
+        let path = std::path::Path::new(".");
+        crate::flatten_with(&world, path, crate::flatten::Instancing::Always).expect("valid")
+    }
+
+    /// The world of [`instanced_scene`].
+    fn instanced_world(flat: u32) -> hecs::World {
+        use crate::math::Quat;
+        use crate::scene::SharedMesh;
+        let mut world = hecs::World::new();
+        world.spawn((Camera::look_at(Vec3::ZERO, Vec3::X, Vec3::Z, 1.0),));
+        let white = Material::Lambertian {
+            albedo: Vec3::splat(0.5),
+        };
+        let random_mesh = |set: u64, n: u32, size: f32, extent: f32| {
+            let u = |i: u32, d: u32| uniform(path_key(set, i, 0), 0, d);
+            let mut mesh = Mesh::default();
+            for i in 0..n {
+                let c = (Vec3::new(u(i, 0), u(i, 1), u(i, 2)) - 0.5) * extent;
+                let e = |d| (Vec3::new(u(i, d), u(i, d + 1), u(i, d + 2)) - 0.5) * size;
+                mesh.indices
+                    .push([0, 1, 2].map(|k| mesh.positions.len() as u32 + k));
+                mesh.positions.extend([c, c + e(3), c + e(6)]);
+                // Shading normals, so that their transform is checked too.
+                mesh.normals
+                    .extend([9, 12, 15].map(|d| (e(d) + Vec3::splat(0.1)).normalize()));
+            }
+            mesh
+        };
+        world.spawn((random_mesh(31, flat, 1.0, 10.0), white));
+        let shared = SharedMesh(std::sync::Arc::new(random_mesh(32, 300, 0.8, 3.0)));
+        let placements = [
+            Affine3A::from_translation(Vec3::new(2.0, 2.0, 2.0)),
+            Affine3A::from_rotation_translation(
+                Quat::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.9),
+                Vec3::new(7.0, 3.0, 5.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(1.5, 0.4, 0.9),
+                Quat::from_rotation_z(0.6),
+                Vec3::new(3.0, 7.0, 7.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(-1.0, 1.0, 1.2),
+                Quat::from_rotation_x(0.3),
+                Vec3::new(7.0, 7.0, 2.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(0.5, 0.5, 0.5),
+                Quat::IDENTITY,
+                Vec3::new(5.0, 5.0, 5.0),
+            ),
+            Affine3A::from_scale_rotation_translation(
+                Vec3::new(-0.7, -1.1, 0.6),
+                Quat::from_rotation_y(1.2),
+                Vec3::new(2.0, 8.0, 8.0),
+            ),
+        ];
+        for m in placements {
+            world.spawn((shared.clone(), Transform(m), white));
+        }
+        for i in 0..4 {
+            let u = |d: u32| uniform(path_key(33, i, 0), 0, d);
+            world.spawn((
+                Sphere { radius: 0.5 },
+                Transform(Affine3A::from_translation(
+                    Vec3::new(u(0), u(1), u(2)) * 10.0,
+                )),
+                white,
+            ));
+        }
+        world
+    }
+
+    #[test]
+    fn instanced_hits_and_occlusion_agree_with_the_brute_force_reference() {
+        // 40 flat primitives (the flat layout), 2,004 (one per leaf), 6,004 (leaves of four):
+        // every flat path combined with the instances.
+        for flat in [36, 2000, 6000] {
+            let scene = instanced_scene(flat);
+            let instances = scene.instances.as_ref().expect("instanced");
+            assert_eq!(instances.instances.len(), 6);
+            assert_eq!(scene.primitive_count(), flat as usize + 4 + 6 * 300);
+            let flat_shapes = || scene.leaf_prims.iter().map(LeafPrim::shape);
+            let mut stack = TraversalStack::default();
+            let (mut instanced_hits, mut hits) = (0, 0);
+            for i in 0..4000 {
+                let (origin, mut direction, t_max) = random_ray(24, i);
+                if i % 2 == 0 {
+                    // Aimed near a primitive (most of them instanced).
+                    let slot = (i as usize * 7919) % scene.primitive_count();
+                    let target = match scene.shape(slot) {
+                        Shape::Triangle(t) => t.v0 + (t.e1 + t.e2) * 0.3,
+                        Shape::Sphere(s) => s.center,
+                    };
+                    direction = (target - origin + 0.05 * direction).normalize();
+                }
+                let expected = reference::closest_hit_instanced(
+                    flat_shapes(),
+                    instances,
+                    origin,
+                    direction,
+                    t_max,
+                );
+                let found = scene.closest_hit(&mut stack, origin, direction, t_max);
+                assert_eq!(found, expected, "{flat} flat, ray {i}");
+                let blocked = scene.occluded(&mut stack, origin, direction, t_max);
+                assert_eq!(blocked, expected.is_some(), "{flat} flat, ray {i}");
+                hits += u32::from(expected.is_some());
+                instanced_hits +=
+                    u32::from(expected.is_some_and(|(s, _)| s as usize >= scene.leaf_prims.len()));
+            }
+            assert!(
+                hits > 1500 && instanced_hits > 500,
+                "{flat}: {hits} hits, {instanced_hits} on instances"
+            );
+        }
+    }
+
+    #[test]
+    fn instanced_shadow_packets_agree_with_the_brute_force_reference() {
+        let scene = instanced_scene(2000);
+        let instances = scene.instances.as_ref().expect("instanced");
+        let flat_shapes = || scene.leaf_prims.iter().map(LeafPrim::shape);
+        let mut stack = TraversalStack::default();
+        let (mut blocked, mut open) = (0, 0);
+        for i in 0..400 {
+            let u = |d: u32| uniform(path_key(25, i, 0), 0, d);
+            let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
+            let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
+            let n = 1 + i as usize % PACKET_SIZE;
+            let (mut directions, mut t_max) = ([Vec3A::ZERO; PACKET_SIZE], [0.0; PACKET_SIZE]);
+            for k in 0..n {
+                let v = |d: u32| uniform(path_key(26, i, k as u32), 0, d) - 0.5;
+                let to = target + 2.0 * Vec3A::new(v(0), v(1), v(2)) - origin;
+                (directions[k], t_max[k]) = (to.normalize(), to.length());
+            }
+            let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
+            let occluded = scene.occluded_packet(&mut stack, &packet);
+            assert_eq!(occluded >> n, 0, "packet {i}: bits past the packet");
+            for k in 0..n {
+                let expected = reference::closest_hit_instanced(
+                    flat_shapes(),
+                    instances,
+                    origin,
+                    directions[k],
+                    t_max[k],
+                )
+                .is_some();
+                assert_eq!(occluded >> k & 1 == 1, expected, "packet {i}, ray {k}");
+                if expected { blocked += 1 } else { open += 1 }
+            }
+        }
+        assert!(
+            blocked > 200 && open > 200,
+            "{blocked} blocked, {open} open"
+        );
+    }
+
+    #[test]
+    fn instanced_triangles_are_the_flattened_ones_with_their_front_sides() {
+        // The same world flattened into one BVH: every instanced triangle (world space, as
+        // shading sees it) is a flattened triangle, with the same geometric normal (the
+        // mirrored instances' winding reversed as the flattener reverses it) and the same
+        // vertex normals in the same corner order (rounding aside).
+        let world = instanced_world(36);
+        let path = std::path::Path::new(".");
+        let instanced =
+            crate::flatten_with(&world, path, crate::flatten::Instancing::Always).expect("valid");
+        let flat =
+            crate::flatten_with(&world, path, crate::flatten::Instancing::Never).expect("valid");
+        assert!(flat.instances.is_none());
+        assert_eq!(flat.primitive_count(), instanced.primitive_count());
+        let first_instanced = instanced.leaf_prims.len();
+        let flat_triangles: Vec<(usize, TriangleGeom)> = (0..flat.primitive_count())
+            .filter_map(|slot| match flat.shape(slot) {
+                Shape::Triangle(t) => Some((slot, t)),
+                Shape::Sphere(_) => None,
+            })
+            .collect();
+        let close = |a: Vec3A, b: Vec3A| (a - b).length() < 1e-4;
+        for slot in first_instanced..instanced.primitive_count() {
+            let Shape::Triangle(t) = instanced.shape(slot) else {
+                panic!("instanced spheres")
+            };
+            let &(twin, f) = flat_triangles
+                .iter()
+                .find(|(_, f)| close(f.v0, t.v0) && close(f.e1, t.e1) && close(f.e2, t.e2))
+                .unwrap_or_else(|| panic!("slot {slot}: no flattened twin"));
+            let n = t.normal_unnormalized().normalize();
+            assert!(
+                n.dot(f.normal_unnormalized().normalize()) > 0.9999,
+                "slot {slot}"
+            );
+            let (a, b) = (instanced.vertex_normals(slot), flat.vertex_normals(twin));
+            for k in 0..3 {
+                assert!((a[k] - b[k]).length() < 1e-4, "slot {slot}, corner {k}");
+            }
+            assert_eq!(instanced.material_of(slot), flat.material_of(twin));
         }
     }
 }

@@ -2,7 +2,6 @@
 //! collapsed into the 4-wide [`Bvh4`] that the traversals walk; leaves are contiguous runs
 //! of slots, and `order` maps slots back to the input primitives.
 
-use crate::geometry::Shape;
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
@@ -71,10 +70,10 @@ impl Bvh4 {
     }
 }
 
-/// Builds the BVH over `shapes`. Returns it with the map from BVH slots to shapes: slot `i`
+/// Builds the BVH over `shapes` (primitives, or the world boxes of instances). Returns it with the map from BVH slots to shapes: slot `i`
 /// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
 /// degenerate geometry does that).
-pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
+pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> {
     let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
         (BvhBuildParams::very_slow_build(), 1)
     } else {
@@ -114,7 +113,7 @@ pub fn build_bvh(shapes: &[Shape]) -> Option<(Bvh4, Vec<u32>)> {
 /// replaces) and without the validation that build runs with debug assertions on: that one panics on
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
-pub(super) fn build_bvh2(shapes: &[Shape], params: BvhBuildParams) -> Bvh2 {
+pub(super) fn build_bvh2<T: obvhs::Boundable>(shapes: &[T], params: BvhBuildParams) -> Bvh2 {
     let indices = (0..shapes.len() as u32).collect();
     // The node array is first written by all threads: PLOC's merge loop fills it on one
     // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone

@@ -437,7 +437,7 @@ fn a_chain_of_identical_triangles_is_refused_without_deep_recursion() {
 
 #[test]
 fn empty_and_single_primitive_scenes() {
-    let (bvh, order) = build_bvh(&[]).unwrap();
+    let (bvh, order) = build_bvh::<Shape>(&[]).unwrap();
     assert!(
         order.is_empty()
             && bvh

@@ -2,6 +2,7 @@
 //! transforms), with their vertex attributes (shading normals, texture coordinates, tangents
 //! for normal maps); degenerate triangles are skipped with a warning.
 
+use super::instances::InstanceRequest;
 use super::lights::validate_emitter;
 use super::materials::{self, MaterialTable};
 use super::{Attributes, Columns, Group, Primitives};
@@ -10,21 +11,27 @@ use crate::error::{Error, Result};
 use crate::geometry::{Shape, TriangleGeom};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
-    AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, Transform, VertexColors,
-    VertexTangents,
+    AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, SharedMesh, Transform,
+    VertexColors, VertexTangents, mesh_of,
 };
 use crate::texture::TextureRef;
 use rayon::prelude::*;
+use std::collections::HashSet;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Appends every mesh of the world to `prims` (one group per mesh), its material to
 /// `materials`.
+/// Entities drawing a mesh of `instanced` (opaque, not emitting) are not flattened but
+/// returned as instance requests.
 pub(super) fn flatten_meshes(
     world: &hecs::World,
     path: &Path,
     materials: &mut MaterialTable,
     prims: &mut Primitives,
-) -> Result<()> {
+    instanced: &HashSet<*const Mesh>,
+) -> Result<Vec<InstanceRequest>> {
+    let mut requests = Vec::new();
     let Primitives {
         groups,
         columns,
@@ -33,11 +40,19 @@ pub(super) fn flatten_meshes(
         alpha_records,
     } = prims;
     let attributes = *attributes;
-    for (name, transform, mesh, (material, alpha), textures, (tangents, colors), emitter) in world
+    for (
+        (entity, name),
+        transform,
+        (mesh, shared),
+        (material, alpha),
+        textures,
+        (tangents, colors),
+        emitter,
+    ) in world
         .query::<(
-            Option<&Name>,
+            (hecs::Entity, Option<&Name>),
             Option<&Transform>,
-            &Mesh,
+            (Option<&Mesh>, Option<&SharedMesh>),
             (&Material, Option<&AlphaCoverage>),
             Option<&MaterialTextures>,
             (Option<&VertexTangents>, Option<&VertexColors>),
@@ -45,10 +60,27 @@ pub(super) fn flatten_meshes(
         )>()
         .iter()
     {
+        let Some(mesh) = mesh_of(mesh, shared) else {
+            continue; // a sphere
+        };
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
         let material = materials.index(material, textures);
         let mut emitter = validate_emitter(emitter, path, name)?;
+        if let Some(shared) = shared
+            && instanced.contains(&Arc::as_ptr(&shared.0))
+            && emitter.is_none()
+            && alpha.is_none()
+        {
+            requests.push(InstanceRequest {
+                mesh: shared.0.clone(),
+                entity,
+                world_from_object: transform,
+                material,
+                normal_mapped: textures.is_some_and(|t| t.normal.is_some()),
+            });
+            continue;
+        }
         let emission_texture = textures
             .and_then(|t| t.emissive.as_ref())
             .filter(|_| emitter.is_some() && !mesh.uvs.is_empty())
@@ -108,7 +140,7 @@ pub(super) fn flatten_meshes(
             ));
         }
     }
-    Ok(())
+    Ok(requests)
 }
 
 /// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
@@ -116,7 +148,7 @@ pub(super) fn flatten_meshes(
 /// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
 /// with the file's tangents, `Some(None)` to make them per triangle. `colors` are the mesh's
 /// vertex colours, if it has any.
-fn flatten_mesh(
+pub(super) fn flatten_mesh(
     mesh: &Mesh,
     world_from_object: &crate::math::Affine3A,
     (tangents, colors): (Option<Option<&VertexTangents>>, Option<&VertexColors>),

@@ -8,10 +8,13 @@
 //! ([`crate::accel::occluders`]). The renderer's hot loops then assume valid data.
 
 mod camera;
+mod instances;
 mod lights;
 mod materials;
 mod meshes;
 mod spheres;
+
+pub use instances::{INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing};
 
 use crate::accel::ClosestHitPath;
 use crate::accel::build::{self as bvh, Bvh4};
@@ -22,7 +25,7 @@ use crate::error::{Error, Result};
 use crate::geometry::Shape;
 use crate::math::{Rgb, Vec2, Vec3, Vec4};
 use crate::render_scene::{NO_EMITTER, RenderScene};
-use crate::scene::{Emitter, MaterialTextures, Mesh, VertexColors};
+use crate::scene::{Emitter, MaterialTextures, Mesh, SharedMesh, VertexColors, mesh_of};
 use crate::texture::TextureRef;
 use materials::MaterialTable;
 use rayon::prelude::*;
@@ -40,12 +43,30 @@ const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 450;
 
 /// Refuses a world whose render scene would not fit in the memory the process can still
 /// take (see [`crate::memory`]), before anything large is built.
-fn check_memory(world: &hecs::World, path: &Path) -> Result<()> {
-    let triangles: u64 = (world.query::<&Mesh>().iter())
-        .map(|mesh| mesh.indices.len() as u64)
-        .sum();
-    let spheres = world.query::<&crate::scene::Sphere>().iter().count() as u64;
-    let primitives = triangles + spheres;
+fn check_memory(
+    world: &hecs::World,
+    path: &Path,
+    instanced: &std::collections::HashSet<*const Mesh>,
+) -> Result<()> {
+    // Flattened meshes count once per entity, instanced ones once in all (their instances
+    // are a few hundred bytes each, counted as one primitive).
+    let mut prototypes = std::collections::HashSet::new();
+    let mut primitives = 0u64;
+    for (mesh, shared) in world.query::<(Option<&Mesh>, Option<&SharedMesh>)>().iter() {
+        let Some(mesh) = mesh_of(mesh, shared) else {
+            continue;
+        };
+        let triangles = mesh.indices.len() as u64;
+        let key = mesh as *const Mesh;
+        primitives += if !instanced.contains(&key) {
+            triangles
+        } else if prototypes.insert(key) {
+            triangles + 1
+        } else {
+            1
+        };
+    }
+    primitives += world.query::<&crate::scene::Sphere>().iter().count() as u64;
     crate::memory::check_fits(
         path,
         &format!("its render scene ({primitives} primitives)"),
@@ -60,35 +81,62 @@ fn check_memory(world: &hecs::World, path: &Path) -> Result<()> {
 /// Flattens the world into a [`RenderScene`]. `path` names the scene in errors.
 /// The camera used is the first one (the earliest spawned).
 pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
+    flatten_with(world, path, Instancing::Auto)
+}
+
+/// [`flatten`], with shared meshes instanced as `instancing` says (see [`Instancing`]).
+pub fn flatten_with(
+    world: &hecs::World,
+    path: &Path,
+    instancing: Instancing,
+) -> Result<RenderScene> {
     let start = Instant::now();
     let camera = camera::first_camera(world, path)?;
-    check_memory(world, path)?;
-
     // Primitives in flattening order (meshes in query order, their triangles in index order,
     // then spheres), one group per entity, with the distinct materials they use.
     let mut materials = MaterialTable::default();
     let mut prims = Primitives::new(Attributes::of(world));
-    meshes::flatten_meshes(world, path, &mut materials, &mut prims)?;
+    let instanced = instances::choose(world, instancing);
+    check_memory(world, path, &instanced)?;
+    let requests = meshes::flatten_meshes(world, path, &mut materials, &mut prims, &instanced)?;
     spheres::flatten_spheres(world, path, &mut materials, &mut prims)?;
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let bvh_start = Instant::now();
     let (bvh, order) = build_bvh(&prims.columns.shapes, path)?;
+    // The instanced meshes: their own trees and the top-level tree over their instances.
+    let instances = instances::build(
+        world,
+        requests,
+        prims.attributes,
+        order.len(),
+        path,
+        &mut prims.warnings,
+    )?;
     let bvh_build = bvh_start.elapsed();
+    let scene_bounds = match (
+        bvh.bounds(),
+        instances.as_ref().and_then(|i| i.tlas.bounds()),
+    ) {
+        (Some(a), Some(b)) => Some(a.union(&b)),
+        (a, b) => a.or(b),
+    };
 
     // Lights, and the primitives that can block shadow rays (which depend on the lights).
-    let delta_lights = lights::punctual_lights(world, bvh.bounds(), path)?;
+    let delta_lights = lights::punctual_lights(world, scene_bounds, path)?;
     let (environment, environment_visible) = lights::environment(world, path)?;
     // Shadow rays in scenes with alpha-tested primitives walk the whole tree (its slots are
     // the ones flagged for the coverage test), and so do shadow rays toward the environment,
     // which leave the scene in every direction: every primitive can block one.
     let alpha_tested = !prims.alpha_records.is_empty();
-    let occluders = if alpha_tested || environment.is_some() {
+    // So do scenes with instances: the occluders' choice sees only the flat primitives' points,
+    // and a triangle that bounds those may still stand between an instance and a light.
+    let occluders = if alpha_tested || environment.is_some() || instances.is_some() {
         None
     } else {
         occluders::occluders(&prims.columns.shapes, &delta_lights)
     };
-    let scene_radius = lights::scene_radius(bvh.bounds());
+    let scene_radius = lights::scene_radius(scene_bounds);
     let lights = lights::scene_lights(&prims, delta_lights, environment, scene_radius);
 
     // Per-slot columns.
@@ -107,7 +155,13 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
         alpha_records,
         ..
     } = prims;
+    let slot_count = instances.as_ref().map_or(leaf_prims.len(), |i| {
+        *i.first_slot.last().expect("one past the last") as usize
+    });
     Ok(RenderScene {
+        instances,
+        slot_count,
+        has_vertex_colors: attributes.colors,
         closest_hit_path: ClosestHitPath::choose(&leaf_prims, &bvh, alpha_tested),
         alpha_of_slot,
         alpha_records,
@@ -211,6 +265,15 @@ impl Columns {
         }
     }
 
+    /// The column `unordered` in BVH slot order, or empty if the scene lacks it.
+    fn ordered_or_empty<T: Copy + Send + Sync>(unordered: &[T], order: &[u32]) -> Vec<T> {
+        if unordered.is_empty() {
+            Vec::new()
+        } else {
+            order.par_iter().map(|&i| unordered[i as usize]).collect()
+        }
+    }
+
     /// The column `unordered` in BVH slot order, or zeros if the scene lacks it.
     fn ordered<T: Copy + Send + Sync + bytemuck::Zeroable>(
         unordered: &[T],
@@ -258,12 +321,18 @@ impl Attributes {
             .iter()
             .any(|t| t.normal.is_some());
         Attributes {
-            normals: world.query::<&Mesh>().iter().any(|m| !m.normals.is_empty()),
-            uvs: world.query::<&Mesh>().iter().any(|m| !m.uvs.is_empty()),
+            normals: any_mesh(world, |m| !m.normals.is_empty()),
+            uvs: any_mesh(world, |m| !m.uvs.is_empty()),
             tangents: normal_mapped,
             colors: world.query::<&VertexColors>().iter().next().is_some(),
         }
     }
+}
+
+/// Whether some mesh of the world ([`Mesh`] or [`SharedMesh`]) satisfies `test`.
+fn any_mesh(world: &hecs::World, test: impl Fn(&Mesh) -> bool) -> bool {
+    world.query::<&Mesh>().iter().any(&test)
+        || world.query::<&SharedMesh>().iter().any(|s| test(&s.0))
 }
 
 /// The BVH over `shapes` and the map from slots to shapes, or an error for geometry too

@@ -36,6 +36,19 @@ pub struct Mesh {
     pub indices: Vec<[u32; 3]>,
 }
 
+/// A [`Mesh`] that several entities use (glTF nodes that share a mesh, the instances of
+/// `EXT_mesh_gpu_instancing`): its data is stored once and each entity places it with its own
+/// [`Transform`]. An entity has either a `Mesh` or a `SharedMesh`; everything that reads
+/// meshes reads both (see [`mesh_of`]), and [`crate::flatten()`] may trace such a mesh once
+/// per entity through a second-level BVH instead of copying it (see `accel::instances`).
+#[derive(Clone, Debug)]
+pub struct SharedMesh(pub Arc<Mesh>);
+
+/// The mesh of an entity that has a [`Mesh`] or a [`SharedMesh`].
+pub fn mesh_of<'a>(mesh: Option<&'a Mesh>, shared: Option<&'a SharedMesh>) -> Option<&'a Mesh> {
+    mesh.or(shared.map(|s| &*s.0))
+}
+
 /// An analytic sphere of the given radius centred on the entity's origin. Its transform may
 /// translate, rotate and scale uniformly; the outward side is the front.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -176,7 +176,7 @@ fn shade_one(
 
     // --- Emission: in full where next-event estimation could not have found it (camera
     // rays, delta bounces, no shadow rays), else with its MIS weight against the shadow rays.
-    let emitter = scene.emitter[slot];
+    let emitter = scene.emitter_of(slot);
     if emitter != NO_EMITTER && (*path.count_emission || *path.bsdf_pdf > 0.0) {
         let light = &scene.lights.lights[emitter as usize];
         if front || light.two_sided {
@@ -195,7 +195,7 @@ fn shade_one(
             }
         }
     }
-    let material = scene.material[slot] as usize;
+    let material = scene.material_of(slot) as usize;
     let (bsdf, ns) = surface::textured_surface(scene, material, slot, hit.barycentric, ng, ns, wo);
     if bsdf.is_black() {
         return false; // e.g. a light source: it reflects nothing

@@ -31,7 +31,7 @@ fn lookup(scene: &RenderScene, t: &TextureRef, uv: Vec2) -> Rgb {
 /// triangles, spheres).
 #[inline(always)]
 pub(super) fn shading_normal(scene: &RenderScene, slot: usize, b: Vec2, ng: Vec3A) -> Vec3A {
-    let [n0, n1, n2] = scene.vertex_normals[slot];
+    let [n0, n1, n2] = scene.vertex_normals(slot);
     if n0 == Vec3::ZERO {
         return ng;
     }
@@ -55,14 +55,14 @@ pub(super) fn textured_surface(
     wo: Vec3A,
 ) -> (Bsdf, Vec3A) {
     let mut bsdf = scene.materials[material];
-    if !scene.vertex_colors.is_empty() {
-        bsdf = bsdf.tinted(interpolate(scene.vertex_colors[slot], b).truncate());
+    if scene.has_vertex_colors() {
+        bsdf = bsdf.tinted(interpolate(scene.vertex_colors(slot), b).truncate());
     }
     let textures = &scene.material_textures[material];
     if textures.is_empty() {
         return (bsdf, ns);
     }
-    let uv = interpolate(scene.vertex_uvs[slot], b);
+    let uv = interpolate(scene.vertex_uvs(slot), b);
     if textures.base_color.is_set() {
         bsdf = bsdf.tinted(lookup(scene, &textures.base_color, uv));
     }
@@ -96,7 +96,7 @@ fn mapped_normal(
     ns: Vec3A,
     wo: Vec3A,
 ) -> Vec3A {
-    let tangents: [Vec4; 3] = scene.vertex_tangents[slot];
+    let tangents: [Vec4; 3] = scene.vertex_tangents(slot);
     let t = interpolate(tangents, b);
     let tangent = Vec3A::from(t.truncate());
     let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();

@@ -23,6 +23,7 @@ mod fuzz_regressions;
 mod geometry_import;
 mod import;
 mod import_robust;
+mod instancing;
 mod interrupt;
 mod large_obj;
 mod light_units;

@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
     AlphaCoverage, AlphaMode, Camera, Emitter, Material, MaterialTextures, Mesh, Name,
-    PunctualLight, TextureSlot, Transform, VertexColors, VertexTangents,
+    PunctualLight, SharedMesh, TextureSlot, Transform, VertexColors, VertexTangents,
 };
 use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
@@ -163,6 +163,16 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let (mut skip_warned, mut lines_warned) = (HashSet::new(), HashSet::new());
     let (mut primitives_seen, mut primitives_read, mut lines_skipped) = (0usize, 0usize, 0usize);
     let mut first_skip: Option<String> = None;
+    // How many times each mesh is drawn (nodes and GPU instances): a mesh drawn more than
+    // once is read once and shared ([`SharedMesh`]).
+    let mut mesh_uses = vec![0usize; document.meshes().len()];
+    for node in document.nodes() {
+        if let Some(mesh) = node.mesh() {
+            mesh_uses[mesh.index()] += instance_count(&node, &document).unwrap_or(1);
+        }
+    }
+    type Read = (Arc<Mesh>, Option<VertexTangents>, Option<VertexColors>);
+    let mut read_cache: HashMap<(usize, usize), Read> = HashMap::new();
     while let Some((node, parent, depth)) = stack.pop() {
         if depth > node_count {
             return Err(Error::input(
@@ -204,58 +214,100 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 joints: joints.as_deref(),
                 world_from_node,
             };
-            // A skinned mesh's vertices come out in world space (see `gltf_deform`).
-            let transform = match deform.joints {
-                Some(_) => Affine3A::IDENTITY,
-                None => world_from_node,
+            // A deformed mesh is this node's own: read for it, never shared.
+            let deformed = deform.joints.is_some() || deform.weights.iter().any(|&w| w != 0.0);
+            // Where the mesh is drawn: at the node, or at each of its GPU instances.
+            let placements: Vec<Affine3A> = match instance_transforms(&node, &document, &buffers) {
+                // A skinned mesh's vertices come out in world space (see `gltf_deform`).
+                _ if deform.joints.is_some() => vec![Affine3A::IDENTITY],
+                None => vec![world_from_node],
+                Some(Ok(local)) => local.iter().map(|t| world_from_node * *t).collect(),
+                Some(Err(message)) => {
+                    warnings.push(format!(
+                        "{}: {}: EXT_mesh_gpu_instancing: {message}; the node's instances \
+                             are skipped",
+                        path.display(),
+                        node_location(&node)
+                    ));
+                    Vec::new()
+                }
             };
+            let shared = !deformed && (mesh_uses[mesh.index()] >= 2 || placements.len() >= 2);
             for primitive in mesh.primitives() {
                 let imported = primitive
                     .material()
                     .index()
                     .map_or(&default_material, |i| &materials[i]);
                 primitives_seen += 1;
-                let read = read_primitive(&primitive, &mesh, imported, &deform, &buffers, path);
-                let (mesh_data, tangents, colors) = match read {
-                    Ok(Some(read)) => read,
-                    Ok(None) => {
-                        if lines_warned.insert((mesh.index(), primitive.index())) {
-                            lines_skipped += 1;
+                let key = (mesh.index(), primitive.index());
+                let (mesh_data, tangents, colors) = match read_cache.get(&key).filter(|_| !deformed)
+                {
+                    Some(read) => read.clone(),
+                    None => {
+                        match read_primitive(&primitive, &mesh, imported, &deform, &buffers, path) {
+                            Ok(Some((m, t, c))) => {
+                                let read = (Arc::new(m), t, c);
+                                if shared {
+                                    read_cache.insert(key, read.clone());
+                                }
+                                read
+                            }
+                            Ok(None) => {
+                                if lines_warned.insert(key) {
+                                    lines_skipped += 1;
+                                }
+                                continue;
+                            }
+                            Err(e) => {
+                                if skip_warned.insert(key) {
+                                    let message = format!("{e}; the primitive is skipped");
+                                    first_skip.get_or_insert_with(|| message.clone());
+                                    warnings.push(message);
+                                }
+                                continue;
+                            }
                         }
-                        continue;
-                    }
-                    Err(e) => {
-                        if skip_warned.insert((mesh.index(), primitive.index())) {
-                            let message = format!("{e}; the primitive is skipped");
-                            first_skip.get_or_insert_with(|| message.clone());
-                            warnings.push(message);
-                        }
-                        continue;
                     }
                 };
                 primitives_read += 1;
-                let entity = world.spawn((
-                    Name(name.clone()),
-                    Transform(transform),
-                    mesh_data,
-                    imported.material,
-                ));
-                if let Some(e) = imported.emitter {
-                    world.insert_one(entity, e).expect("just spawned");
-                }
-                if !imported.textures.is_empty() {
-                    world
-                        .insert_one(entity, imported.textures.clone())
-                        .expect("just spawned");
-                }
-                if let Some(t) = tangents {
-                    world.insert_one(entity, t).expect("just spawned");
-                }
-                if let Some(c) = colors {
-                    world.insert_one(entity, c).expect("just spawned");
-                }
-                if let Some(a) = imported.alpha {
-                    world.insert_one(entity, a).expect("just spawned");
+                // A mesh used once stays a plain `Mesh` (the common case, which every reader
+                // of the world knows); a shared one is stored once.
+                let (mut plain, shared_data) = if shared {
+                    (None, Some(mesh_data))
+                } else {
+                    (Some(Arc::unwrap_or_clone(mesh_data)), None)
+                };
+                for world_from_object in &placements {
+                    let entity = world.spawn((
+                        Name(name.clone()),
+                        Transform(*world_from_object),
+                        imported.material,
+                    ));
+                    match plain.take() {
+                        Some(m) => world.insert_one(entity, m),
+                        None => {
+                            let data = shared_data.clone().expect("a shared mesh");
+                            world.insert_one(entity, SharedMesh(data))
+                        }
+                    }
+                    .expect("just spawned");
+                    if let Some(e) = imported.emitter {
+                        world.insert_one(entity, e).expect("just spawned");
+                    }
+                    if !imported.textures.is_empty() {
+                        world
+                            .insert_one(entity, imported.textures.clone())
+                            .expect("just spawned");
+                    }
+                    if let Some(t) = &tangents {
+                        world.insert_one(entity, t.clone()).expect("just spawned");
+                    }
+                    if let Some(c) = &colors {
+                        world.insert_one(entity, c.clone()).expect("just spawned");
+                    }
+                    if let Some(a) = imported.alpha {
+                        world.insert_one(entity, a).expect("just spawned");
+                    }
                 }
             }
         }
@@ -832,6 +884,119 @@ fn metallic_from_specular(diffuse: Rgb, specular: Rgb) -> (Rgb, f32) {
     (base.clamp(Rgb::ZERO, Rgb::ONE), metallic)
 }
 
+/// The extension `EXT_mesh_gpu_instancing` of a node, if it has one.
+const GPU_INSTANCING: &str = "EXT_mesh_gpu_instancing";
+
+/// The number of GPU instances of `node` (the count of its first instancing accessor), or
+/// `None` when it has none (or a malformed extension, which [`instance_transforms`] reports).
+fn instance_count(node: &gltf::Node, document: &gltf::Document) -> Option<usize> {
+    let attributes = node
+        .extension_value(GPU_INSTANCING)?
+        .get("attributes")?
+        .as_object()?;
+    attributes
+        .values()
+        .filter_map(|index| document.accessors().nth(index.as_u64()? as usize))
+        .map(|a| a.count())
+        .next()
+}
+
+/// The GPU instances of `node` (`EXT_mesh_gpu_instancing`) as transforms in node space
+/// (translation x rotation x scale of each instance; an attribute that is missing is the
+/// identity's), `None` when the node has no instances, or why they cannot be read. The
+/// accessor types are those the extension allows: floats, normalized bytes and shorts for
+/// rotations, and with `KHR_mesh_quantization` bytes and shorts (normalized or not) for
+/// translations and scales.
+fn instance_transforms(
+    node: &gltf::Node,
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Option<std::result::Result<Vec<Affine3A>, String>> {
+    use gltf::accessor::DataType::{F32, I8, I16, U8, U16};
+    let extension = node.extension_value(GPU_INSTANCING)?;
+    Some((|| {
+        let attributes = extension
+            .get("attributes")
+            .and_then(|a| a.as_object())
+            .ok_or("no attributes")?;
+        let accessor = |semantic: &str, dimensions: usize, types: &[gltf::accessor::DataType]| {
+            let Some(index) = attributes.get(semantic) else {
+                return Ok(None);
+            };
+            let accessor = index
+                .as_u64()
+                .and_then(|i| document.accessors().nth(i as usize))
+                .ok_or_else(|| format!("{semantic}: no accessor {index}"))?;
+            let data_type = accessor.data_type();
+            let normalized_only = semantic == "ROTATION" && data_type != F32;
+            if accessor.dimensions().multiplicity() != dimensions
+                || !types.contains(&data_type)
+                || (normalized_only && !accessor.normalized())
+            {
+                return Err(format!(
+                    "{semantic} accessor {} holds {:?} {data_type:?}{}, which the extension \
+                     does not allow",
+                    accessor.index(),
+                    accessor.dimensions(),
+                    if accessor.normalized() {
+                        " (normalized)"
+                    } else {
+                        ""
+                    }
+                ));
+            }
+            Ok(Some(accessor))
+        };
+        let translation = accessor("TRANSLATION", 3, &[F32, I8, U8, I16, U16])?;
+        let rotation = accessor("ROTATION", 4, &[F32, I8, I16])?;
+        let scale = accessor("SCALE", 3, &[F32, I8, U8, I16, U16])?;
+        let counts: Vec<usize> = [&translation, &rotation, &scale]
+            .iter()
+            .filter_map(|a| a.as_ref().map(|a| a.count()))
+            .collect();
+        let Some(&count) = counts.first() else {
+            return Err("no TRANSLATION, ROTATION or SCALE attribute".to_string());
+        };
+        if counts.iter().any(|&c| c != count) {
+            return Err(format!("the attributes have different counts {counts:?}"));
+        }
+        let outside = |semantic: &str| format!("{semantic}: the data lies outside its buffer");
+        let translations = match &translation {
+            Some(a) => {
+                Some(gltf_geometry::read_floats::<3>(a, buffers).ok_or(outside("TRANSLATION"))?)
+            }
+            None => None,
+        };
+        let rotations = match &rotation {
+            Some(a) => {
+                Some(gltf_geometry::read_floats::<4>(a, buffers).ok_or(outside("ROTATION"))?)
+            }
+            None => None,
+        };
+        let scales = match &scale {
+            Some(a) => Some(gltf_geometry::read_floats::<3>(a, buffers).ok_or(outside("SCALE"))?),
+            None => None,
+        };
+        let mut transforms = Vec::with_capacity(count);
+        for i in 0..count {
+            let t = translations
+                .as_ref()
+                .map_or(Vec3::ZERO, |v| Vec3::from(v[i]));
+            let r = rotations.as_ref().map_or(crate::math::Quat::IDENTITY, |v| {
+                crate::math::Quat::from_array(v[i])
+            });
+            let s = scales.as_ref().map_or(Vec3::ONE, |v| Vec3::from(v[i]));
+            let r = r.normalize();
+            let transform = Affine3A::from_scale_rotation_translation(s, r, t);
+            if !transform.is_finite() {
+                return Err(format!("instance {i}: the transform is not finite"));
+            }
+            transforms.push(transform);
+        }
+        Ok(transforms)
+    })())
+}
+
 /// How a node deforms its mesh (see [`gltf_deform`]).
 struct Deform<'a> {
     /// Morph target weights (the node's, else the mesh's; empty: none).
@@ -842,6 +1007,9 @@ struct Deform<'a> {
     world_from_node: Affine3A,
 }
 
+/// A primitive as read: its mesh, and its tangents and colours if it has them.
+type ReadPrimitive = (Mesh, Option<VertexTangents>, Option<VertexColors>);
+
 /// Reads one primitive's triangles into a [`Mesh`], morphed, in node space (in world space
 /// when `deform` skins it).
 fn read_primitive(
@@ -851,7 +1019,7 @@ fn read_primitive(
     deform: &Deform,
     buffers: &[gltf::buffer::Data],
     path: &Path,
-) -> Result<Option<(Mesh, Option<VertexTangents>, Option<VertexColors>)>> {
+) -> Result<Option<ReadPrimitive>> {
     let mesh_name = match mesh.name() {
         Some(n) => format!("mesh '{n}' (index {})", mesh.index()),
         None => format!("mesh {}", mesh.index()),

@@ -30,6 +30,7 @@ pub(super) const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_texture_transform",
     "KHR_texture_basisu",
     "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
 ];
 
@@ -40,7 +41,6 @@ const KNOWN: &[&str] = &[
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
     "KHR_animation_pointer",
-    "EXT_mesh_gpu_instancing",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",
     "KHR_materials_volume",
@@ -315,14 +315,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "primitive",
     );
     let nodes: Vec<gltf::Node> = document.nodes().collect();
-    count(
-        "EXT_mesh_gpu_instancing is ignored: each node is drawn once, without its instances",
-        nodes
-            .iter()
-            .filter(|n| n.extension_value("EXT_mesh_gpu_instancing").is_some())
-            .count(),
-        "node",
-    );
     count(
         "minification filters are ignored: textures are sampled bilinearly without mipmaps",
         document

@@ -9,7 +9,8 @@ use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::math::{Affine3A, Vec3, luminance};
 use crate::scene::{
-    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, Transform,
+    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, SharedMesh, Sphere,
+    Transform, mesh_of,
 };
 use std::path::Path;
 
@@ -57,25 +58,57 @@ pub fn has_lights(world: &hecs::World) -> bool {
     emitting || world.query::<&PunctualLight>().iter().next().is_some()
 }
 
-/// Every world-space point of the meshes (their vertices) and spheres (their boxes' corners).
+/// Above this many vertices in all, a shared mesh contributes the eight corners of its box
+/// rather than its vertices to [`world_points`]: 1,000 nodes sharing a 100,000-triangle mesh
+/// would otherwise make 50M points (600 MB, copied twice by the fit). The box's corners
+/// enclose the mesh, so the placement stays in view; it is only less tight.
+const EXACT_POINTS: usize = 4_000_000;
+
+/// Every world-space point of the meshes (their vertices, or for shared meshes in large
+/// scenes their boxes' corners, see [`EXACT_POINTS`]) and spheres (their boxes' corners).
 fn world_points(world: &hecs::World) -> Vec<Vec3> {
     let mut points = Vec::new();
-    for (mesh, transform) in world.query::<(&Mesh, Option<&Transform>)>().iter() {
+    let total: usize = world
+        .query::<&Mesh>()
+        .iter()
+        .map(|m| m.positions.len())
+        .sum::<usize>()
+        + world
+            .query::<&SharedMesh>()
+            .iter()
+            .map(|m| m.0.positions.len())
+            .sum::<usize>();
+    let boxes_for_shared = total > EXACT_POINTS;
+    let mut mesh_boxes = std::collections::HashMap::<*const Mesh, Vec<Vec3>>::new();
+    let mut meshes = world.query::<(Option<&Mesh>, Option<&SharedMesh>, Option<&Transform>)>();
+    for (mesh, shared, transform) in meshes.iter() {
+        let Some(m) = mesh_of(mesh, shared) else {
+            continue;
+        };
         let t = transform.copied().unwrap_or_default().0;
-        // Only vertices that triangles use: an unused vertex is not seen.
-        let mut used = vec![false; mesh.positions.len()];
-        for tri in &mesh.indices {
-            for &i in tri {
-                used[i as usize] = true;
-            }
+        if let Some(shared) = shared.filter(|_| boxes_for_shared) {
+            let corners = mesh_boxes
+                .entry(std::sync::Arc::as_ptr(&shared.0))
+                .or_insert_with(|| {
+                    let used = used_vertices(m);
+                    box_of(&used).map_or_else(Vec::new, |(lo, hi)| {
+                        (0..8)
+                            .map(|c| {
+                                let pick =
+                                    |bit: u32, a: f32, b: f32| if c & bit == 0 { a } else { b };
+                                Vec3::new(
+                                    pick(1, lo.x, hi.x),
+                                    pick(2, lo.y, hi.y),
+                                    pick(4, lo.z, hi.z),
+                                )
+                            })
+                            .collect()
+                    })
+                });
+            points.extend(corners.iter().map(|p| t.transform_point3(*p)));
+            continue;
         }
-        points.extend(
-            mesh.positions
-                .iter()
-                .zip(&used)
-                .filter(|(_, u)| **u)
-                .map(|(p, _)| t.transform_point3(*p)),
-        );
+        points.extend(used_vertices(m).into_iter().map(|p| t.transform_point3(p)));
     }
     for (sphere, transform) in world.query::<(&Sphere, Option<&Transform>)>().iter() {
         let t = transform.copied().unwrap_or_default().0;
@@ -87,6 +120,22 @@ fn world_points(world: &hecs::World) -> Vec<Vec3> {
         }
     }
     points
+}
+
+/// The vertices of `mesh` that triangles use (an unused vertex is not seen), object space.
+fn used_vertices(mesh: &Mesh) -> Vec<Vec3> {
+    let mut used = vec![false; mesh.positions.len()];
+    for tri in &mesh.indices {
+        for &i in tri {
+            used[i as usize] = true;
+        }
+    }
+    mesh.positions
+        .iter()
+        .zip(&used)
+        .filter(|(_, u)| **u)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// World-space bounding box (min, max) of every mesh and sphere, or `None` if there is none.
@@ -242,7 +291,7 @@ pub(super) fn merge_model(
         t.0 = placement * t.0;
     }
     let unplaced: Vec<hecs::Entity> = model
-        .query::<(hecs::Entity, &Mesh)>()
+        .query::<(hecs::Entity, hecs::Or<&Mesh, &SharedMesh>)>()
         .without::<&Transform>()
         .iter()
         .map(|(e, _)| e)
