@@ -314,7 +314,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "primitive",
     );
-    let nodes: Vec<gltf::Node> = document.nodes().collect();
     count(
         "minification filters are ignored: textures are sampled bilinearly without mipmaps",
         document
