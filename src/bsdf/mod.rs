@@ -259,6 +259,28 @@ mod tests {
     use super::*;
     use crate::math::rng::{path_key, uniform};
 
+    /// An unlit surface reflects nothing in any direction (no sample, no value, no density,
+    /// no light sampling: the shade stage ends the path there and shows its colour), and
+    /// textures and vertex colours tint its colour.
+    #[test]
+    fn unlit_reflects_nothing_and_is_tinted() {
+        let unlit = Bsdf::Unlit {
+            color: Rgb::new(0.2, 0.5, 0.8),
+        };
+        let (wo, wi) = (Vec3A::new(0.3, 0.0, 0.954), Vec3A::new(-0.5, 0.1, 0.86));
+        assert!(unlit.is_black() && unlit.is_delta());
+        assert_eq!(unlit.eval(wo, wi), Rgb::ZERO);
+        assert_eq!(unlit.pdf(wo, wi), 0.0);
+        assert_eq!(unlit.sample(wo, 0.5, Vec2::splat(0.5)), None);
+        assert_eq!(
+            unlit.tinted(Rgb::new(0.5, 1.0, 0.0)),
+            Bsdf::Unlit {
+                color: Rgb::new(0.1, 0.5, 0.0)
+            }
+        );
+        assert_eq!(unlit.with_metallic_roughness_scaled(0.0, 0.0), unlit);
+    }
+
     /// Four directions at a time give what `eval` and `pdf` give one by one, bit for bit, on
     /// the Lambertian lane path and the generic one, for directions on both sides.
     #[test]
