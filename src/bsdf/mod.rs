@@ -56,6 +56,13 @@ pub enum Bsdf {
     /// `KHR_materials_sheen` layers. Build it with [`Bsdf::layered`], which keeps a surface
     /// without layers [`Bsdf::MetallicRoughness`] (or Lambertian).
     Layered(Layered),
+    /// `KHR_materials_unlit`: a surface that shows `color` to every ray that hits it and
+    /// reflects nothing (a display convention, not a light: the shade stage adds the colour
+    /// as radiance seen along the ray; it is no light source for next-event estimation).
+    Unlit {
+        /// The radiance shown: base colour (times texture and vertex colour), linear RGB.
+        color: Rgb,
+    },
 }
 
 /// A sampled direction with its path-throughput factor.
@@ -111,7 +118,7 @@ impl Bsdf {
             Bsdf::Dielectric { ior, .. } => ior,
             Bsdf::MetallicRoughness(params) => params.ior,
             Bsdf::Layered(layered) => layered.base.ior,
-            Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } => return 1.0,
+            Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } | Bsdf::Unlit { .. } => return 1.0,
         };
         if wo.z * wi.z >= 0.0 {
             return 1.0;
@@ -121,10 +128,12 @@ impl Bsdf {
         1.0 / (eta * eta)
     }
 
-    /// Whether the surface reflects nothing at all (a path ends on it).
+    /// Whether the surface reflects nothing at all (a path ends on it; an unlit one shows its
+    /// colour there).
     #[inline]
     pub fn is_black(&self) -> bool {
         match *self {
+            Bsdf::Unlit { .. } => true,
             Bsdf::Lambertian { albedo } => albedo == Rgb::ZERO,
             Bsdf::Mirror { tint } | Bsdf::Dielectric { tint, .. } => tint == Rgb::ZERO,
             Bsdf::MetallicRoughness(params) => params.is_black(),
@@ -158,6 +167,9 @@ impl Bsdf {
                 },
                 ..layered
             }),
+            Bsdf::Unlit { color } => Bsdf::Unlit {
+                color: color * colour,
+            },
         }
     }
 
@@ -191,7 +203,7 @@ impl Bsdf {
             Bsdf::Lambertian { albedo } => lambert::eval(albedo, wo, wi),
             Bsdf::MetallicRoughness(params) => params.eval(wo, wi),
             Bsdf::Layered(layered) => layered.eval(wo, wi),
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => Rgb::ZERO,
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Unlit { .. } => Rgb::ZERO,
         }
     }
 
@@ -202,7 +214,7 @@ impl Bsdf {
             Bsdf::Lambertian { .. } => lambert::pdf(wo, wi),
             Bsdf::MetallicRoughness(params) => params.pdf(wo, wi),
             Bsdf::Layered(layered) => layered.pdf(wo, wi),
-            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => 0.0,
+            Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } | Bsdf::Unlit { .. } => 0.0,
         }
     }
 
@@ -237,6 +249,7 @@ impl Bsdf {
             }
             Bsdf::MetallicRoughness(params) => params.sample(wo, u_lobe, u),
             Bsdf::Layered(layered) => layered.sample(wo, u_lobe, u),
+            Bsdf::Unlit { .. } => None,
         }
     }
 }
@@ -245,6 +258,28 @@ impl Bsdf {
 mod tests {
     use super::*;
     use crate::math::rng::{path_key, uniform};
+
+    /// An unlit surface reflects nothing in any direction (no sample, no value, no density,
+    /// no light sampling: the shade stage ends the path there and shows its colour), and
+    /// textures and vertex colours tint its colour.
+    #[test]
+    fn unlit_reflects_nothing_and_is_tinted() {
+        let unlit = Bsdf::Unlit {
+            color: Rgb::new(0.2, 0.5, 0.8),
+        };
+        let (wo, wi) = (Vec3A::new(0.3, 0.0, 0.954), Vec3A::new(-0.5, 0.1, 0.86));
+        assert!(unlit.is_black() && unlit.is_delta());
+        assert_eq!(unlit.eval(wo, wi), Rgb::ZERO);
+        assert_eq!(unlit.pdf(wo, wi), 0.0);
+        assert_eq!(unlit.sample(wo, 0.5, Vec2::splat(0.5)), None);
+        assert_eq!(
+            unlit.tinted(Rgb::new(0.5, 1.0, 0.0)),
+            Bsdf::Unlit {
+                color: Rgb::new(0.1, 0.5, 0.0)
+            }
+        );
+        assert_eq!(unlit.with_metallic_roughness_scaled(0.0, 0.0), unlit);
+    }
 
     /// Four directions at a time give what `eval` and `pdf` give one by one, bit for bit, on
     /// the Lambertian lane path and the generic one, for directions on both sides.

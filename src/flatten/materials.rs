@@ -15,6 +15,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
     match *m {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
+        Material::Unlit { color } => Bsdf::Unlit { color },
         Material::Dielectric { ior, fresnel, tint } => Bsdf::Dielectric { ior, fresnel, tint },
         Material::MetallicRoughness {
             base_color,

@@ -115,6 +115,14 @@ pub enum Material {
         /// Perceptual roughness of the sheen in [0, 1] (default 0; below 0.05 taken as 0.05).
         sheen_roughness: f32,
     },
+    /// glTF `KHR_materials_unlit`: the surface shows `color` (times the base-colour texture
+    /// and vertex colours) to every ray that hits it, camera and bounce rays alike, and
+    /// reflects nothing; it lights nothing through next-event estimation (it is not a light
+    /// source). A display convention for baked or flat-shaded assets, not physics.
+    Unlit {
+        /// The colour shown, linear RGB in [0, 1] (the base colour factor).
+        color: Rgb,
+    },
 }
 
 /// Surface emission: the entity is an area light of constant radiance.

@@ -7,6 +7,7 @@ use super::next_event::{
     self, GROUPS_PER_PASS, MAX_SHADOW_GROUPS, NextEvent, ShadingPoint, ShadowView,
 };
 use super::surface;
+use crate::bsdf::Bsdf;
 use crate::geometry::SurfacePoint;
 use crate::lights::{Environment, LightSamples, LightUniforms};
 use crate::math::frame::Frame;
@@ -198,6 +199,11 @@ fn shade_one(
     let material = scene.material_of(slot) as usize;
     let (bsdf, ns) = surface::textured_surface(scene, material, slot, hit.barycentric, ng, ns, wo);
     if bsdf.is_black() {
+        if let Bsdf::Unlit { color } = bsdf {
+            // KHR_materials_unlit shows its colour to whatever ray hits it, in full (it is
+            // no light: no shadow ray could have found it).
+            *path.radiance += *path.throughput * color;
+        }
         return false; // e.g. a light source: it reflects nothing
     }
     let frame = Frame::from_normal(ns);

@@ -170,3 +170,85 @@ fn textured_radiance(scene: &RenderScene, radiance: [Vec4; 3], points: LightPoin
     }
     by_channel.map(Vec4::from_array)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::MetallicRoughness;
+    use crate::math::Vec3A;
+
+    /// A white metal (metallic 1, roughness 1) quad with a 1 x 1 metallic-roughness texture
+    /// of (red 0, green 128, blue 64), written as a glTF with its PNG.
+    fn mr_textured_quad(dir: &std::path::Path) -> std::path::PathBuf {
+        image::RgbImage::from_pixel(1, 1, image::Rgb([0, 128, 64]))
+            .save(dir.join("mr.png"))
+            .unwrap();
+        let floats: [f32; 20] = [
+            -1.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -1.0, 1.0, 0.0, // positions
+            0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0, // uvs
+        ];
+        let mut bytes: Vec<u8> = floats.iter().flat_map(|x| x.to_le_bytes()).collect();
+        bytes.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+        std::fs::write(dir.join("quad.bin"), &bytes).unwrap();
+        let gltf = format!(
+            r#"{{"asset": {{"version": "2.0"}}, "scenes": [{{"nodes": [0]}}],
+            "nodes": [{{"mesh": 0}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}},
+                "indices": 2, "material": 0}}]}}],
+            "materials": [{{"pbrMetallicRoughness": {{"metallicFactor": 1.0, "roughnessFactor": 1.0,
+                "metallicRoughnessTexture": {{"index": 0}}}}}}],
+            "textures": [{{"source": 0, "sampler": 0}}], "images": [{{"uri": "mr.png"}}],
+            "samplers": [{{"magFilter": 9728}}],
+            "buffers": [{{"uri": "quad.bin", "byteLength": {}}}],
+            "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}},
+                {{"buffer": 0, "byteOffset": 48, "byteLength": 32}},
+                {{"buffer": 0, "byteOffset": 80, "byteLength": 12}}],
+            "accessors": [
+                {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                  "min": [-1, -1, 0], "max": [1, 1, 0]}},
+                {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}},
+                {{"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#,
+            bytes.len()
+        );
+        let path = dir.join("quad.gltf");
+        std::fs::write(&path, gltf).unwrap();
+        path
+    }
+
+    #[test]
+    fn metallic_roughness_texture_is_linear_blue_metallic_green_roughness() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = mr_textured_quad(dir.path());
+        let scene = crate::load_scene(&path).unwrap();
+        let scene = crate::flatten(&scene.world, &path).unwrap();
+        // (The bare model is placed in the seed room: find the quad's slot.)
+        let slot = (scene.material.iter())
+            .position(|&m| {
+                scene.material_textures[m as usize]
+                    .metallic_roughness
+                    .is_set()
+            })
+            .expect("the quad's material reads the texture");
+        let material = scene.material[slot] as usize;
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let Bsdf::MetallicRoughness(MetallicRoughness {
+            metallic, alpha, ..
+        }) = bsdf
+        else {
+            panic!("{bsdf:?}")
+        };
+        // Linear: 64/255 = 0.251 and 128/255 = 0.502 (sRGB-decoded they would be 0.0513 and
+        // 0.2158); blue is metallic, green is roughness, and alpha = roughness^2.
+        assert!(
+            (metallic - 64.0 / 255.0).abs() < 1e-6,
+            "metallic {metallic}"
+        );
+        let roughness = 128.0f32 / 255.0;
+        assert!(
+            (alpha - roughness * roughness).abs() < 1e-6,
+            "alpha {alpha}, roughness {}",
+            alpha.sqrt()
+        );
+    }
+}

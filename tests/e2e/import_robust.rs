@@ -457,18 +457,19 @@ fn spec_gloss_converts_and_required_fallback_extensions_load() {
     );
     assert_eq!(metallic, 0.0);
     assert_eq!(roughness, 0.75);
-    // Unlit: the base material, with one warning; variants: the default material.
-    assert!(matches!(material_of(&scene, "flat"),
-        Material::MetallicRoughness { base_color, .. } if base_color == Rgb::new(0.2, 0.4, 0.6)));
+    // Unlit: its base colour shown as it is (see tests/e2e/unlit.rs), without a warning;
+    // variants: the default material.
     assert_eq!(
-        warnings_with(&scene, "KHR_materials_unlit is approximated"),
-        1
+        material_of(&scene, "flat"),
+        Material::Unlit {
+            color: Rgb::new(0.2, 0.4, 0.6)
+        }
     );
     assert_eq!(
         warnings_with(&scene, "KHR_materials_variants is ignored"),
         1
     );
-    assert_eq!(scene.warnings.len(), 2, "{:?}", scene.warnings);
+    assert_eq!(scene.warnings.len(), 1, "{:?}", scene.warnings);
     // No material: Blender's grey dielectric, not glTF's white metal.
     assert_eq!(
         material_of(&scene, "plain"),

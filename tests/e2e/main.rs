@@ -35,4 +35,5 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
+mod unlit;
 mod vertex_colors;

@@ -820,6 +820,20 @@ fn import_material(
         }
         Some(slot)
     });
+    if m.extension_value("KHR_materials_unlit").is_some() {
+        // Unlit: base colour, its texture, vertex colours and alpha only; everything about
+        // lighting (metal, roughness, normal map, emission) is ignored, as the extension says.
+        return ImportedMaterial {
+            material: Material::Unlit { color: base },
+            emitter: None,
+            textures: MaterialTextures {
+                base_color,
+                ..MaterialTextures::default()
+            },
+            uv_set,
+            alpha,
+        };
+    }
     ImportedMaterial {
         material,
         emitter,

@@ -230,14 +230,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "material",
     );
-    count(
-        "KHR_materials_unlit is approximated: the base colour is lit like any surface",
-        materials
-            .iter()
-            .filter(|m| m.extension_value("KHR_materials_unlit").is_some())
-            .count(),
-        "material",
-    );
     let with_keys = |extension: &str, keys: &[&str]| {
         materials
             .iter()
