@@ -121,6 +121,19 @@ impl Bsdf {
         1.0 / (eta * eta)
     }
 
+    /// Whether some non-delta lobe transmits (light from behind the surface reaches `wo`), so
+    /// that next-event estimation must sample lights on both sides.
+    #[inline]
+    pub fn transmits(&self) -> bool {
+        match *self {
+            Bsdf::MetallicRoughness(params) => params.transmission > 0.0 && params.metallic < 1.0,
+            Bsdf::Layered(layered) => {
+                layered.base.transmission > 0.0 && layered.base.metallic < 1.0
+            }
+            Bsdf::Lambertian { .. } | Bsdf::Mirror { .. } | Bsdf::Dielectric { .. } => false,
+        }
+    }
+
     /// Whether the surface reflects nothing at all (a path ends on it).
     #[inline]
     pub fn is_black(&self) -> bool {

@@ -10,6 +10,10 @@ use crate::math::{Rgb, Vec2, Vec3A};
 pub struct RayBatch {
     /// Ray origin, world space (already offset off the surface it leaves).
     pub origin: Vec<Vec3A>,
+    /// Shadow rays through the surface each path made (0 unless its BSDF transmits).
+    pub back_count: Vec<u32>,
+    /// Their shared origin, offset to the back side of the surface.
+    pub back_origin: Vec<Vec3A>,
     /// Unit direction, world space.
     pub direction: Vec<Vec3A>,
 }
@@ -98,7 +102,9 @@ impl PathState {
 /// Shadow rays: room for a fixed number of entries per live path (`per_path`), so that each
 /// path owns a contiguous chunk and the shadow stage can accumulate without synchronisation.
 /// A path's rays are packed at the front of its chunk (`count` of them) and share their
-/// origin, which lets the shadow stage trace them as packets straight from the buffers.
+/// origin, which lets the shadow stage trace them as packets straight from the buffers. At a
+/// surface that transmits, the rays toward lights behind it leave from a second origin on the
+/// back side: they are packed at the end of the chunk (`back_count` of them, last first).
 #[derive(Default)]
 pub struct ShadowBatch {
     /// Entries per path (at least 1).
@@ -107,6 +113,10 @@ pub struct ShadowBatch {
     pub count: Vec<u32>,
     /// Shared origin of each path's shadow rays, offset off the surface (one per path).
     pub origin: Vec<Vec3A>,
+    /// Shadow rays through the surface each path made (0 unless its BSDF transmits).
+    pub back_count: Vec<u32>,
+    /// Their shared origin, offset to the back side of the surface.
+    pub back_origin: Vec<Vec3A>,
     /// Unit direction toward the light point.
     pub direction: Vec<Vec3A>,
     /// Distance up to which occluders count (just short of the light).
@@ -124,6 +134,8 @@ impl ShadowBatch {
             let n = paths * self.per_path;
             self.count.resize(paths, 0);
             self.origin.resize(paths, Vec3A::ZERO);
+            self.back_count.resize(paths, 0);
+            self.back_origin.resize(paths, Vec3A::ZERO);
             self.direction.resize(n, Vec3A::Z);
             self.t_max.resize(n, 0.0);
             self.contribution.resize(n, Rgb::ZERO);

@@ -79,6 +79,8 @@ pub fn shade_hits(
             shadow: ShadowView {
                 count: &mut shadows.count[i],
                 origin: &mut shadows.origin[i],
+                back_count: &mut shadows.back_count[i],
+                back_origin: &mut shadows.back_origin[i],
                 direction: &mut shadows.direction[chunk.clone()],
                 t_max: &mut shadows.t_max[chunk.clone()],
                 contribution: &mut shadows.contribution[chunk],
@@ -155,6 +157,7 @@ fn shade_one(
     next_event: NextEvent,
 ) -> bool {
     *next_event.shadow.count = 0;
+    *next_event.shadow.back_count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
         if let Some(environment) = scene.lights.environment() {
@@ -236,10 +239,10 @@ fn shade_one(
         *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
     }
     // Emission the next hit finds counts in full where no shadow ray could have reached it:
-    // after delta lobes, without shadow rays, and through the surface (shadow rays only
-    // leave on the front side; rough glass transmits). Elsewhere MIS weights it, or, with
-    // light sampling only, the shadow rays alone count it.
-    *path.count_emission = sample.is_delta || params.shadow_rays == 0 || transmitted;
+    // after delta lobes and without shadow rays. Elsewhere, through a rough transmitting
+    // surface as well (its shadow rays reach lights on both sides), MIS weights it, or,
+    // with light sampling only, the shadow rays alone count it.
+    *path.count_emission = sample.is_delta || params.shadow_rays == 0;
     *path.bsdf_pdf = if params.mis && !sample.is_delta {
         sample.pdf
     } else {

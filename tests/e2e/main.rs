@@ -31,4 +31,5 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
+mod transmission;
 mod vertex_colors;
