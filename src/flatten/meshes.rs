@@ -11,7 +11,7 @@ use crate::geometry::{Shape, TriangleGeom};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
     AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, Transform, VertexColors,
-    VertexTangents,
+    VertexTangents, Volume,
 };
 use crate::texture::TextureRef;
 use rayon::prelude::*;
@@ -33,21 +33,22 @@ pub(super) fn flatten_meshes(
         alpha_records,
     } = prims;
     let attributes = *attributes;
-    for (name, transform, mesh, (material, alpha), textures, (tangents, colors), emitter) in world
-        .query::<(
-            Option<&Name>,
-            Option<&Transform>,
-            &Mesh,
-            (&Material, Option<&AlphaCoverage>),
-            Option<&MaterialTextures>,
-            (Option<&VertexTangents>, Option<&VertexColors>),
-            Option<&Emitter>,
-        )>()
-        .iter()
+    for (name, transform, mesh, (material, alpha, volume), textures, (tangents, colors), emitter) in
+        world
+            .query::<(
+                Option<&Name>,
+                Option<&Transform>,
+                &Mesh,
+                (&Material, Option<&AlphaCoverage>, Option<&Volume>),
+                Option<&MaterialTextures>,
+                (Option<&VertexTangents>, Option<&VertexColors>),
+                Option<&Emitter>,
+            )>()
+            .iter()
     {
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
-        let material = materials.index(material, textures);
+        let material = materials.index(material, textures, volume);
         let mut emitter = validate_emitter(emitter, path, name)?;
         let emission_texture = textures
             .and_then(|t| t.emissive.as_ref())

@@ -98,6 +98,7 @@ pub fn flatten(world: &hecs::World, path: &Path) -> Result<RenderScene> {
         material,
         emitter,
         material_textures: materials.surface_textures(),
+        material_absorption: materials.absorptions(),
         materials: materials.bsdfs(),
         textures: materials.interner.textures,
         lights: lights.table,

@@ -11,6 +11,6 @@ pub mod load;
 pub use components::{
     AlphaCoverage, AlphaMode, Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel,
     Material, MaterialTextures, Mesh, Name, PunctualLight, Sphere, TextureSlot, Transform,
-    VertexColors, VertexTangents,
+    VertexColors, VertexTangents, Volume,
 };
 pub use load::{Scene, load_scene, load_scene_str};

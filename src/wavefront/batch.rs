@@ -73,6 +73,9 @@ pub struct PathState {
     /// Product of the radiance compressions (`1 / eta^2`) of the refractions so far, which
     /// Russian roulette divides out of the throughput.
     pub radiance_scale: Vec<f32>,
+    /// Absorption coefficient of the medium the path travels in (`KHR_materials_volume`):
+    /// set when it refracts into an absorbing object, zero outside.
+    pub medium: Vec<Rgb>,
 }
 
 impl PathState {
@@ -96,6 +99,7 @@ impl PathState {
         self.bsdf_pdf.resize(n, 0.0);
         self.alive.resize(n, false);
         self.radiance_scale.resize(n, 1.0);
+        self.medium.resize(n, Rgb::ZERO);
     }
 }
 
@@ -161,6 +165,7 @@ pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut
         paths.count_emission[kept] = paths.count_emission[i];
         paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
         paths.radiance_scale[kept] = paths.radiance_scale[i];
+        paths.medium[kept] = paths.medium[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

@@ -6,7 +6,7 @@
 //! The light samples of a hit's shadow rays are the points of one rank-1 lattice, shifted per
 //! path, four lanes to a group, and shaded four lanes at a time.
 
-use super::shade::ShadeParams;
+use super::shade::{ShadeParams, transmittance};
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::lights::{LIGHT_LANES, LightSamples, LightUniforms};
@@ -57,6 +57,11 @@ pub(super) struct ShadingPoint {
     pub(super) frame: Frame,
     pub(super) bsdf: Bsdf,
     pub(super) wo_local: Vec3A,
+    /// Absorption of the medium the shadow rays cross on the path's side of the surface,
+    /// and through it (`Rgb::ZERO`: none). A ray that crosses a medium reaches a light only
+    /// inside it (the object's own surface blocks the rest), so the whole distance counts.
+    pub(super) front_medium: Rgb,
+    pub(super) back_medium: Rgb,
 }
 
 /// The light-sample uniforms of `shadow_rays` shadow rays (a rank-1 lattice), four lanes to
@@ -105,7 +110,10 @@ pub(super) fn sample_lights(
         frame,
         bsdf,
         wo_local,
+        front_medium,
+        back_medium,
     } = *at;
+    let absorbs = front_medium != Rgb::ZERO || back_medium != Rgb::ZERO;
     let inv_n = 1.0 / params.shadow_rays as f32;
     // Shadow rays leave on the front side of the surface (the side the path came from), all
     // from one offset origin so that they are traced as a packet. Where the BSDF transmits,
@@ -192,18 +200,22 @@ pub(super) fn sample_lights(
                 let keep_back = (behind & lit & crosses).bitmask() & lane_mask;
                 let last = shadow.direction.len() - 1;
                 for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
-                    let entry = if keep_front >> k & 1 == 1 {
+                    let (entry, medium) = if keep_front >> k & 1 == 1 {
                         count += 1;
-                        count - 1
+                        (count - 1, front_medium)
                     } else if keep_back >> k & 1 == 1 {
                         back_count += 1;
-                        last + 1 - back_count
+                        (last + 1 - back_count, back_medium)
                     } else {
                         continue;
                     };
                     shadow.direction[entry] = Vec3A::from_vec4(ray);
                     shadow.t_max[entry] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
-                    shadow.contribution[entry] = colour.truncate();
+                    shadow.contribution[entry] = if absorbs {
+                        colour.truncate() * transmittance(medium, ray.w)
+                    } else {
+                        colour.truncate()
+                    };
                 }
                 continue;
             }
@@ -213,7 +225,11 @@ pub(super) fn sample_lights(
             for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
                 shadow.direction[count] = Vec3A::from_vec4(ray);
                 shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
-                shadow.contribution[count] = colour.truncate();
+                shadow.contribution[count] = if absorbs {
+                    colour.truncate() * transmittance(front_medium, ray.w)
+                } else {
+                    colour.truncate()
+                };
                 count += (keep >> k & 1) as usize;
             }
         }

@@ -69,6 +69,7 @@ pub fn shade_hits(
             bsdf_pdf: &mut paths.bsdf_pdf[i],
             alive: &mut paths.alive[i],
             radiance_scale: &mut paths.radiance_scale[i],
+            medium: &mut paths.medium[i],
             next_origin: &mut next_rays.origin[i],
             next_direction: &mut next_rays.direction[i],
         };
@@ -115,6 +116,7 @@ struct PathView<'a> {
     bsdf_pdf: &'a mut f32,
     alive: &'a mut bool,
     radiance_scale: &'a mut f32,
+    medium: &'a mut Rgb,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
 }
@@ -147,6 +149,25 @@ fn escaped(
     *path.radiance += *path.throughput * environment.eval(hit.direction) * weight;
 }
 
+/// The absorption coefficient of the medium inside `material` (zero if it has none).
+#[inline]
+fn material_absorption(scene: &RenderScene, material: usize) -> Rgb {
+    scene
+        .material_absorption
+        .get(material)
+        .copied()
+        .unwrap_or(Rgb::ZERO)
+}
+
+/// The fraction of light left after `distance` in a medium of absorption `sigma_a`.
+#[inline]
+pub(super) fn transmittance(sigma_a: Rgb, distance: f32) -> Rgb {
+    // A channel that absorbs nothing keeps everything, even to a directional light's
+    // infinite distance (0 x infinity would be NaN).
+    let channel = |s: f32| if s > 0.0 { (-s * distance).exp() } else { 1.0 };
+    Rgb::new(channel(sigma_a.x), channel(sigma_a.y), channel(sigma_a.z))
+}
+
 /// Shades one hit. Returns whether the path was cut by the depth cap.
 fn shade_one(
     scene: &RenderScene,
@@ -167,6 +188,10 @@ fn shade_one(
     }
     let slot = hit.slot as usize;
     let bounce = params.bounce;
+    // Beer-Lambert absorption along the segment that reached the hit.
+    if *path.medium != Rgb::ZERO {
+        *path.throughput *= transmittance(*path.medium, hit.t);
+    }
 
     // --- Surface: position, its rounding error, geometric and shading normals.
     let SurfacePoint { p, p_error, ng } =
@@ -216,6 +241,14 @@ fn shade_one(
             frame,
             bsdf,
             wo_local,
+            // Shadow rays on the path's side travel in its medium; through the surface, in
+            // the object's (entering) or outside (leaving).
+            front_medium: *path.medium,
+            back_medium: if front {
+                material_absorption(scene, material)
+            } else {
+                Rgb::ZERO
+            },
         };
         next_event::sample_lights(scene, params, key, &at, *path.throughput, next_event);
     }
@@ -237,6 +270,12 @@ fn shade_one(
     *path.throughput *= sample.weight;
     if transmitted {
         *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
+        // Into the object through its front side, out of it through its back side.
+        *path.medium = if front {
+            material_absorption(scene, material)
+        } else {
+            Rgb::ZERO
+        };
     }
     // Emission the next hit finds counts in full where no shadow ray could have reached it:
     // after delta lobes and without shadow rays. Elsewhere, through a rough transmitting

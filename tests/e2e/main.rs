@@ -33,3 +33,4 @@ mod shipped_scenes;
 mod textures;
 mod transmission;
 mod vertex_colors;
+mod volume;
