@@ -17,7 +17,7 @@ use crate::geometry::Shape;
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::triangle::{OriginTerms, intersect_triangle_from};
 use crate::lights::LightTable;
-use crate::math::{Vec2, Vec3, Vec3A, Vec4};
+use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::Camera;
 use crate::texture::{SurfaceTextures, Texture, TexturedEmission};
 use obvhs::aabb::Aabb;
@@ -64,6 +64,9 @@ pub struct RenderScene {
     /// Distinct materials.
     #[doc(hidden)]
     pub materials: Vec<Bsdf>,
+    /// Absorption coefficient of the medium inside each material (`KHR_materials_volume`),
+    /// by material index; empty when no material absorbs.
+    pub(crate) material_absorption: Vec<Rgb>,
     /// Textures per material, looked up at the hit's texture coordinates.
     #[doc(hidden)]
     pub material_textures: Vec<SurfaceTextures>,

@@ -128,6 +128,22 @@ impl Bsdf {
         1.0 / (eta * eta)
     }
 
+    /// Whether some non-delta lobe transmits (light from behind the surface reaches `wo`), so
+    /// that next-event estimation must sample lights on both sides.
+    #[inline]
+    pub fn transmits(&self) -> bool {
+        match *self {
+            Bsdf::MetallicRoughness(params) => params.transmission > 0.0 && params.metallic < 1.0,
+            Bsdf::Layered(layered) => {
+                layered.base.transmission > 0.0 && layered.base.metallic < 1.0
+            }
+            Bsdf::Lambertian { .. }
+            | Bsdf::Mirror { .. }
+            | Bsdf::Dielectric { .. }
+            | Bsdf::Unlit { .. } => false,
+        }
+    }
+
     /// Whether the surface reflects nothing at all (a path ends on it; an unlit one shows its
     /// colour there).
     #[inline]
@@ -323,6 +339,60 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// `transmits` is true exactly for the models whose `eval` is non-zero for some pair of
+    /// directions on opposite sides (next-event estimation relies on it to send shadow rays
+    /// through the surface): every variant, layers over glass included.
+    #[test]
+    fn transmits_exactly_when_eval_crosses_the_surface() {
+        let glass = MetallicRoughness {
+            transmission: 0.7,
+            ..MetallicRoughness::new(Rgb::new(0.9, 0.8, 0.7), 0.2, 0.5)
+        };
+        let layers = |base| {
+            Bsdf::layered(Layered {
+                base,
+                clearcoat: 0.8,
+                clearcoat_alpha: 0.05,
+                sheen_color: Rgb::new(0.5, 0.4, 0.3),
+                sheen_roughness: 0.4,
+            })
+        };
+        let opaque = MetallicRoughness::new(Rgb::new(0.9, 0.8, 0.7), 0.3, 0.5);
+        let cases = [
+            (Bsdf::Lambertian { albedo: Rgb::ONE }, false),
+            (Bsdf::Mirror { tint: Rgb::ONE }, false),
+            (
+                Bsdf::Dielectric {
+                    ior: 1.5,
+                    fresnel: FresnelModel::Exact,
+                    tint: Rgb::ONE,
+                },
+                false, // delta only: no lobe for shadow rays
+            ),
+            (Bsdf::metallic_roughness(opaque), false),
+            (Bsdf::metallic_roughness(glass), true),
+            (
+                Bsdf::metallic_roughness(MetallicRoughness {
+                    metallic: 1.0,
+                    ..glass
+                }),
+                false,
+            ),
+            (layers(opaque), false),
+            (layers(glass), true),
+        ];
+        for (b, (bsdf, transmits)) in cases.iter().enumerate() {
+            assert_eq!(bsdf.transmits(), *transmits, "{bsdf:?}");
+            let crossing = (0..2000).any(|i| {
+                let u = |d: u32| uniform(path_key(23, i, b as u32), 0, d);
+                let wo = (Vec3A::new(u(0), u(1), u(2)) * 2.0 - 1.0).normalize_or(Vec3A::Z);
+                let wi = (Vec3A::new(u(3), u(4), u(5)) * 2.0 - 1.0).normalize_or(Vec3A::Z);
+                wo.z * wi.z < 0.0 && bsdf.eval(wo, wi) != Rgb::ZERO
+            });
+            assert_eq!(crossing, *transmits, "{bsdf:?}");
         }
     }
 

@@ -5,7 +5,7 @@
 use crate::bsdf::microfacet::alpha_from_roughness;
 use crate::bsdf::{Bsdf, FresnelModel, Layered, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
-use crate::scene::{Material, MaterialTextures, TextureSlot};
+use crate::scene::{Material, MaterialTextures, TextureSlot, Volume};
 use crate::texture::{SurfaceTextures, Texture, TextureRef};
 use std::sync::Arc;
 
@@ -67,23 +67,32 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
     }
 }
 
-/// The distinct materials of the scene, with the textures they read.
+/// The distinct materials of the scene, with the textures they read and the absorption of
+/// the medium inside.
 #[derive(Default)]
 pub(super) struct MaterialTable {
-    /// Each material's scattering model and textures, in order of first use.
-    materials: Vec<(Bsdf, SurfaceTextures)>,
+    /// Each material's scattering model, textures and absorption, in order of first use.
+    materials: Vec<(Bsdf, SurfaceTextures, Rgb)>,
     /// The distinct textures.
     pub(super) interner: TextureInterner,
 }
 
 impl MaterialTable {
-    /// The index of the scene material `m` with its textures, added if new.
-    pub(super) fn index(&mut self, m: &Material, textures: Option<&MaterialTextures>) -> u32 {
+    /// The index of the scene material `m` with its textures and the medium inside, added
+    /// if new.
+    pub(super) fn index(
+        &mut self,
+        m: &Material,
+        textures: Option<&MaterialTextures>,
+        volume: Option<&Volume>,
+    ) -> u32 {
         let surface = self.interner.surface(textures);
         let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
-        let found = self.materials.iter().position(|b| *b == (bsdf, surface));
+        let absorption = volume.map_or(Rgb::ZERO, |v| v.absorption);
+        let key = (bsdf, surface, absorption);
+        let found = self.materials.iter().position(|b| *b == key);
         found.unwrap_or_else(|| {
-            self.materials.push((bsdf, surface));
+            self.materials.push(key);
             self.materials.len() - 1
         }) as u32
     }
@@ -91,6 +100,15 @@ impl MaterialTable {
     /// The scattering models, by index.
     pub(super) fn bsdfs(&self) -> Vec<Bsdf> {
         self.materials.iter().map(|m| m.0).collect()
+    }
+
+    /// The absorption coefficient inside each material, by index; empty when nothing
+    /// absorbs (the shading stage then skips the media).
+    pub(super) fn absorptions(&self) -> Vec<Rgb> {
+        if self.materials.iter().all(|m| m.2 == Rgb::ZERO) {
+            return Vec::new();
+        }
+        self.materials.iter().map(|m| m.2).collect()
     }
 
     /// The textures each material reads, by index.

@@ -12,7 +12,7 @@ use crate::geometry::{Shape, TriangleGeom};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
     AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, SharedMesh, Transform,
-    VertexColors, VertexTangents, mesh_of,
+    VertexColors, VertexTangents, Volume, mesh_of,
 };
 use crate::texture::TextureRef;
 use rayon::prelude::*;
@@ -44,7 +44,7 @@ pub(super) fn flatten_meshes(
         (entity, name),
         transform,
         (mesh, shared),
-        (material, alpha),
+        (material, alpha, volume),
         textures,
         (tangents, colors),
         emitter,
@@ -53,7 +53,7 @@ pub(super) fn flatten_meshes(
             (hecs::Entity, Option<&Name>),
             Option<&Transform>,
             (Option<&Mesh>, Option<&SharedMesh>),
-            (&Material, Option<&AlphaCoverage>),
+            (&Material, Option<&AlphaCoverage>, Option<&Volume>),
             Option<&MaterialTextures>,
             (Option<&VertexTangents>, Option<&VertexColors>),
             Option<&Emitter>,
@@ -65,7 +65,7 @@ pub(super) fn flatten_meshes(
         };
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
-        let material = materials.index(material, textures);
+        let material = materials.index(material, textures, volume);
         let mut emitter = validate_emitter(emitter, path, name)?;
         if let Some(shared) = shared
             && instanced.contains(&Arc::as_ptr(&shared.0))

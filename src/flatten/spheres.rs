@@ -7,7 +7,7 @@ use super::{Group, Primitives};
 use crate::error::{Error, Result};
 use crate::geometry::{Shape, SphereGeom};
 use crate::math::Vec3;
-use crate::scene::{Emitter, Material, Name, Sphere, Transform};
+use crate::scene::{Emitter, Material, Name, Sphere, Transform, Volume};
 use std::path::Path;
 
 /// Appends every sphere of the world to `prims` (one group each), its material to
@@ -25,12 +25,12 @@ pub(super) fn flatten_spheres(
         ..
     } = prims;
     let attributes = *attributes;
-    for (name, transform, sphere, material, emitter) in world
+    for (name, transform, sphere, (material, volume), emitter) in world
         .query::<(
             Option<&Name>,
             Option<&Transform>,
             &Sphere,
-            &Material,
+            (&Material, Option<&Volume>),
             Option<&Emitter>,
         )>()
         .iter()
@@ -62,7 +62,7 @@ pub(super) fn flatten_spheres(
                 "radius must be positive and the sphere's bounds finite",
             ));
         }
-        let material = materials.index(material, None);
+        let material = materials.index(material, None, volume);
         let emitter = validate_emitter(emitter, path, name)?;
         groups.push(Group {
             first: columns.shapes.len(),

@@ -189,6 +189,28 @@ impl MaterialTextures {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexTangents(pub Vec<Vec4>);
 
+/// The medium inside a transmissive object (`KHR_materials_volume`): light travelling through
+/// it is absorbed by Beer-Lambert's law, `exp(-absorption * distance)` per channel. Only paths
+/// that refract into the object through its front (outer) side enter it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Volume {
+    /// Absorption coefficient sigma_a per unit length, linear RGB (>= 0, finite).
+    pub absorption: Rgb,
+}
+
+impl Volume {
+    /// The medium that leaves `colour` of the light after `distance` (glTF's
+    /// `attenuationColor` and `attenuationDistance`): sigma_a = -ln(colour) / distance, or
+    /// `None` when it absorbs nothing (white colour or infinite distance).
+    pub fn from_attenuation(colour: Rgb, distance: f32) -> Option<Volume> {
+        // A black channel absorbs completely within any distance: as good as the smallest
+        // positive colour, which keeps the coefficient finite.
+        let colour = colour.clamp(Rgb::splat(f32::MIN_POSITIVE), Rgb::ONE);
+        let absorption = -Rgb::new(colour.x.ln(), colour.y.ln(), colour.z.ln()) / distance;
+        (distance > 0.0 && absorption.max_element() > 0.0).then_some(Volume { absorption })
+    }
+}
+
 /// How the alpha of a surface covers it (glTF `alphaMode` MASK or BLEND; OPAQUE surfaces
 /// have no such component). The coverage at a point is `factor` x the base-colour texture's
 /// alpha x the vertex colour's alpha.
@@ -296,5 +318,31 @@ impl Camera {
             vfov,
             aspect_ratio: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn volume_from_attenuation_is_beer_lambert() {
+        // What is left after `distance` is the attenuation colour.
+        let v = Volume::from_attenuation(Rgb::new(0.8, 0.5, 1.0), 2.0).unwrap();
+        let left = (-v.absorption * 2.0).to_array().map(f32::exp);
+        for (l, c) in left.iter().zip([0.8, 0.5, 1.0]) {
+            assert!((l - c).abs() < 1e-6, "{left:?}");
+        }
+        // Nothing absorbed: white, an infinite or a non-positive distance (glTF's defaults
+        // and invalid values).
+        assert_eq!(Volume::from_attenuation(Rgb::ONE, 1.0), None);
+        assert_eq!(
+            Volume::from_attenuation(Rgb::splat(0.5), f32::INFINITY),
+            None
+        );
+        assert_eq!(Volume::from_attenuation(Rgb::splat(0.5), 0.0), None);
+        // A black channel absorbs everything within the distance, with a finite coefficient.
+        let black = Volume::from_attenuation(Rgb::ZERO, 1.0).unwrap();
+        assert!(black.absorption.is_finite() && black.absorption.min_element() > 80.0);
     }
 }

@@ -10,6 +10,10 @@ use crate::math::{Rgb, Vec2, Vec3A};
 pub struct RayBatch {
     /// Ray origin, world space (already offset off the surface it leaves).
     pub origin: Vec<Vec3A>,
+    /// Shadow rays through the surface each path made (0 unless its BSDF transmits).
+    pub back_count: Vec<u32>,
+    /// Their shared origin, offset to the back side of the surface.
+    pub back_origin: Vec<Vec3A>,
     /// Unit direction, world space.
     pub direction: Vec<Vec3A>,
 }
@@ -69,6 +73,9 @@ pub struct PathState {
     /// Product of the radiance compressions (`1 / eta^2`) of the refractions so far, which
     /// Russian roulette divides out of the throughput.
     pub radiance_scale: Vec<f32>,
+    /// Absorption coefficient of the medium the path travels in (`KHR_materials_volume`):
+    /// set when it refracts into an absorbing object, zero outside.
+    pub medium: Vec<Rgb>,
 }
 
 impl PathState {
@@ -92,13 +99,16 @@ impl PathState {
         self.bsdf_pdf.resize(n, 0.0);
         self.alive.resize(n, false);
         self.radiance_scale.resize(n, 1.0);
+        self.medium.resize(n, Rgb::ZERO);
     }
 }
 
 /// Shadow rays: room for a fixed number of entries per live path (`per_path`), so that each
 /// path owns a contiguous chunk and the shadow stage can accumulate without synchronisation.
 /// A path's rays are packed at the front of its chunk (`count` of them) and share their
-/// origin, which lets the shadow stage trace them as packets straight from the buffers.
+/// origin, which lets the shadow stage trace them as packets straight from the buffers. At a
+/// surface that transmits, the rays toward lights behind it leave from a second origin on the
+/// back side: they are packed at the end of the chunk (`back_count` of them, last first).
 #[derive(Default)]
 pub struct ShadowBatch {
     /// Entries per path (at least 1).
@@ -107,6 +117,10 @@ pub struct ShadowBatch {
     pub count: Vec<u32>,
     /// Shared origin of each path's shadow rays, offset off the surface (one per path).
     pub origin: Vec<Vec3A>,
+    /// Shadow rays through the surface each path made (0 unless its BSDF transmits).
+    pub back_count: Vec<u32>,
+    /// Their shared origin, offset to the back side of the surface.
+    pub back_origin: Vec<Vec3A>,
     /// Unit direction toward the light point.
     pub direction: Vec<Vec3A>,
     /// Distance up to which occluders count (just short of the light).
@@ -124,6 +138,8 @@ impl ShadowBatch {
             let n = paths * self.per_path;
             self.count.resize(paths, 0);
             self.origin.resize(paths, Vec3A::ZERO);
+            self.back_count.resize(paths, 0);
+            self.back_origin.resize(paths, Vec3A::ZERO);
             self.direction.resize(n, Vec3A::Z);
             self.t_max.resize(n, 0.0);
             self.contribution.resize(n, Rgb::ZERO);
@@ -149,6 +165,7 @@ pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut
         paths.count_emission[kept] = paths.count_emission[i];
         paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
         paths.radiance_scale[kept] = paths.radiance_scale[i];
+        paths.medium[kept] = paths.medium[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

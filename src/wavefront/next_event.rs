@@ -6,7 +6,7 @@
 //! The light samples of a hit's shadow rays are the points of one rank-1 lattice, shifted per
 //! path, four lanes to a group, and shaded four lanes at a time.
 
-use super::shade::ShadeParams;
+use super::shade::{ShadeParams, transmittance};
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::lights::{LIGHT_LANES, LightSamples, LightUniforms};
@@ -36,6 +36,8 @@ pub(super) struct NextEvent<'a> {
 pub(super) struct ShadowView<'a> {
     pub(super) count: &'a mut u32,
     pub(super) origin: &'a mut Vec3A,
+    pub(super) back_count: &'a mut u32,
+    pub(super) back_origin: &'a mut Vec3A,
     pub(super) direction: &'a mut [Vec3A],
     pub(super) t_max: &'a mut [f32],
     pub(super) contribution: &'a mut [Rgb],
@@ -55,6 +57,11 @@ pub(super) struct ShadingPoint {
     pub(super) frame: Frame,
     pub(super) bsdf: Bsdf,
     pub(super) wo_local: Vec3A,
+    /// Absorption of the medium the shadow rays cross on the path's side of the surface,
+    /// and through it (`Rgb::ZERO`: none). A ray that crosses a medium reaches a light only
+    /// inside it (the object's own surface blocks the rest), so the whole distance counts.
+    pub(super) front_medium: Rgb,
+    pub(super) back_medium: Rgb,
 }
 
 /// The light-sample uniforms of `shadow_rays` shadow rays (a rank-1 lattice), four lanes to
@@ -103,13 +110,24 @@ pub(super) fn sample_lights(
         frame,
         bsdf,
         wo_local,
+        front_medium,
+        back_medium,
     } = *at;
+    let absorbs = front_medium != Rgb::ZERO || back_medium != Rgb::ZERO;
     let inv_n = 1.0 / params.shadow_rays as f32;
-    // Every shadow ray leaves on the front side of the surface (lights behind it are
-    // skipped below), so all share one offset origin and can be traced as a packet.
+    // Shadow rays leave on the front side of the surface (the side the path came from), all
+    // from one offset origin so that they are traced as a packet. Where the BSDF transmits,
+    // rays toward lights behind the surface leave from a second origin on the back side
+    // (without them, lights that BSDF sampling cannot hit, such as punctual ones, would be
+    // lost behind rough glass); elsewhere lights behind are skipped below.
     let front_normal = if front { ng } else { -ng };
     let origin = offset_ray_origin(p, p_error, ng, front_normal);
     *shadow.origin = origin;
+    let transmits = bsdf.transmits();
+    if transmits {
+        *shadow.back_origin = offset_ray_origin(p, p_error, ng, -front_normal);
+    }
+    let mut back_count = 0;
     // Behind every light (a ceiling above a ceiling light) all samples would be zero.
     let groups_needed = if scene.lights.all_behind(origin) {
         0
@@ -168,13 +186,38 @@ pub(super) fn sample_lights(
             let lit = contribution[0].cmpne(Vec4::ZERO)
                 | contribution[1].cmpne(Vec4::ZERO)
                 | contribution[2].cmpne(Vec4::ZERO);
-            // A shadow ray only where there is something to add.
-            let keep = (usable & lit).bitmask() & ((1 << lanes) - 1);
-            // Back to one vector per lane, and written without branches: every lane is
-            // stored at the next free entry, which only a kept lane takes.
+            let lane_mask = (1 << lanes) - 1;
+            // Back to one vector per lane.
             let rays = transpose4([wi_x, wi_y, wi_z, samples.distance]);
             let [r, g, b] = contribution;
             let colours = transpose4([r, g, b, Vec4::ZERO]);
+            if transmits {
+                // Lights on either side. A ray counts where the shading frame agrees with the
+                // geometry on whether it crosses the surface (as BSDF sampling requires).
+                let crosses = (wi_local[2] * Vec4::splat(wo_local.z)).cmplt(Vec4::ZERO);
+                let behind = dot(side).cmplt(Vec4::ZERO) & samples.scale.cmpgt(Vec4::ZERO);
+                let keep_front = (usable & lit & !crosses).bitmask() & lane_mask;
+                let keep_back = (behind & lit & crosses).bitmask() & lane_mask;
+                let last = shadow.direction.len() - 1;
+                for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
+                    let entry = if keep_front >> k & 1 == 1 {
+                        count += 1;
+                        count - 1
+                    } else if keep_back >> k & 1 == 1 {
+                        back_count += 1;
+                        last + 1 - back_count
+                    } else {
+                        continue;
+                    };
+                    shadow.direction[entry] = Vec3A::from_vec4(ray);
+                    shadow.t_max[entry] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
+                    shadow.contribution[entry] = colour.truncate();
+                }
+                continue;
+            }
+            // A shadow ray only where there is something to add, written without branches:
+            // every lane is stored at the next free entry, which only a kept lane takes.
+            let keep = (usable & lit).bitmask() & lane_mask;
             for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
                 shadow.direction[count] = Vec3A::from_vec4(ray);
                 shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
@@ -184,6 +227,19 @@ pub(super) fn sample_lights(
         }
     }
     *shadow.count = count as u32;
+    *shadow.back_count = back_count as u32;
+    // Absorption in media, after the loop so that surfaces outside media do no work in it.
+    // Over the shortened length: 1e-4 of the distance changes the transmittance by nothing
+    // measurable.
+    if absorbs {
+        let back = shadow.direction.len() - back_count;
+        for (entry, medium) in (0..count)
+            .map(|e| (e, front_medium))
+            .chain((back..shadow.direction.len()).map(|e| (e, back_medium)))
+        {
+            shadow.contribution[entry] *= transmittance(medium, shadow.t_max[entry]);
+        }
+    }
 }
 
 /// The MIS weight of emission that a BSDF-sampled ray (solid-angle density `bsdf_pdf` at the

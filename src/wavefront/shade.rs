@@ -70,6 +70,7 @@ pub fn shade_hits(
             bsdf_pdf: &mut paths.bsdf_pdf[i],
             alive: &mut paths.alive[i],
             radiance_scale: &mut paths.radiance_scale[i],
+            medium: &mut paths.medium[i],
             next_origin: &mut next_rays.origin[i],
             next_direction: &mut next_rays.direction[i],
         };
@@ -80,6 +81,8 @@ pub fn shade_hits(
             shadow: ShadowView {
                 count: &mut shadows.count[i],
                 origin: &mut shadows.origin[i],
+                back_count: &mut shadows.back_count[i],
+                back_origin: &mut shadows.back_origin[i],
                 direction: &mut shadows.direction[chunk.clone()],
                 t_max: &mut shadows.t_max[chunk.clone()],
                 contribution: &mut shadows.contribution[chunk],
@@ -114,6 +117,7 @@ struct PathView<'a> {
     bsdf_pdf: &'a mut f32,
     alive: &'a mut bool,
     radiance_scale: &'a mut f32,
+    medium: &'a mut Rgb,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
 }
@@ -146,6 +150,25 @@ fn escaped(
     *path.radiance += *path.throughput * environment.eval(hit.direction) * weight;
 }
 
+/// The absorption coefficient of the medium inside `material` (zero if it has none).
+#[inline]
+fn material_absorption(scene: &RenderScene, material: usize) -> Rgb {
+    scene
+        .material_absorption
+        .get(material)
+        .copied()
+        .unwrap_or(Rgb::ZERO)
+}
+
+/// The fraction of light left after `distance` in a medium of absorption `sigma_a`.
+#[inline]
+pub(super) fn transmittance(sigma_a: Rgb, distance: f32) -> Rgb {
+    // A channel that absorbs nothing keeps everything, even to a directional light's
+    // infinite distance (0 x infinity would be NaN).
+    let channel = |s: f32| if s > 0.0 { (-s * distance).exp() } else { 1.0 };
+    Rgb::new(channel(sigma_a.x), channel(sigma_a.y), channel(sigma_a.z))
+}
+
 /// Shades one hit. Returns whether the path was cut by the depth cap.
 fn shade_one(
     scene: &RenderScene,
@@ -156,6 +179,7 @@ fn shade_one(
     next_event: NextEvent,
 ) -> bool {
     *next_event.shadow.count = 0;
+    *next_event.shadow.back_count = 0;
     *path.alive = false;
     if hit.slot == NO_HIT {
         if let Some(environment) = scene.lights.environment() {
@@ -165,6 +189,10 @@ fn shade_one(
     }
     let slot = hit.slot as usize;
     let bounce = params.bounce;
+    // Beer-Lambert absorption along the segment that reached the hit.
+    if *path.medium != Rgb::ZERO {
+        *path.throughput *= transmittance(*path.medium, hit.t);
+    }
 
     // --- Surface: position, its rounding error, geometric and shading normals.
     let SurfacePoint { p, p_error, ng } =
@@ -219,6 +247,14 @@ fn shade_one(
             frame,
             bsdf,
             wo_local,
+            // Shadow rays on the path's side travel in its medium; through the surface, in
+            // the object's (entering) or outside (leaving).
+            front_medium: *path.medium,
+            back_medium: if front {
+                material_absorption(scene, material)
+            } else {
+                Rgb::ZERO
+            },
         };
         next_event::sample_lights(scene, params, key, &at, *path.throughput, next_event);
     }
@@ -240,12 +276,18 @@ fn shade_one(
     *path.throughput *= sample.weight;
     if transmitted {
         *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
+        // Into the object through its front side, out of it through its back side.
+        *path.medium = if front {
+            material_absorption(scene, material)
+        } else {
+            Rgb::ZERO
+        };
     }
     // Emission the next hit finds counts in full where no shadow ray could have reached it:
-    // after delta lobes, without shadow rays, and through the surface (shadow rays only
-    // leave on the front side; rough glass transmits). Elsewhere MIS weights it, or, with
-    // light sampling only, the shadow rays alone count it.
-    *path.count_emission = sample.is_delta || params.shadow_rays == 0 || transmitted;
+    // after delta lobes and without shadow rays. Elsewhere, through a rough transmitting
+    // surface as well (its shadow rays reach lights on both sides), MIS weights it, or,
+    // with light sampling only, the shadow rays alone count it.
+    *path.count_emission = sample.is_delta || params.shadow_rays == 0;
     *path.bsdf_pdf = if params.mis && !sample.is_delta {
         sample.pdf
     } else {

@@ -4,6 +4,7 @@
 
 use super::batch::{PathState, ShadowBatch};
 use crate::alpha::RayKey;
+use crate::math::{Rgb, Vec3A};
 use crate::render_scene::{PACKET_SIZE, Packet, RenderScene, TraversalStack};
 
 /// Traces the shadow rays (made at `bounce`) and accumulates visible contributions into the
@@ -25,35 +26,77 @@ pub fn trace_shadow_rays(
     for (i, radiance) in path_radiance.iter_mut().enumerate() {
         let count = shadows.count[i] as usize;
         let chunk = i * per..i * per + count;
-        let (direction, t_max) = (
-            &shadows.direction[chunk.clone()],
-            &shadows.t_max[chunk.clone()],
+        // The coverage test of alpha-tested primitives takes one number per ray: the ray's
+        // place in the path's chunk (1-based; back-side rays count on past the front ones).
+        let key = |first_ray: usize| RayKey {
+            path: rng_key[i],
+            bounce,
+            ray: 1 + first_ray as u32,
+        };
+        trace_packets(
+            scene,
+            &mut stack,
+            shadows,
+            shadows.origin[i],
+            chunk,
+            key(0),
+            radiance,
         );
-        let contribution = &shadows.contribution[chunk];
-        for first in (0..count).step_by(PACKET_SIZE) {
-            let rays = first..(first + PACKET_SIZE).min(count);
-            let packet = Packet::new(
-                shadows.origin[i],
-                &direction[rays.clone()],
-                &t_max[rays.clone()],
-            );
-            let key = RayKey {
-                path: rng_key[i],
-                bounce,
-                ray: 1 + first as u32,
-            };
-            let occluded = scene.occluded_covered_packet(&mut stack, &packet, key);
-            // Summed in a local, in the same order: adding into the path's entry in memory
-            // made every addition wait for the store of the one before.
-            let mut sum = *radiance;
-            for (k, c) in contribution[rays].iter().enumerate() {
-                if occluded & (1 << k) == 0 {
-                    sum += *c;
-                }
-            }
-            *radiance = sum;
-        }
         traced += count as u64;
+        // Rays through a transmitting surface, from its back side (none on opaque surfaces).
+        let back = shadows.back_count[i] as usize;
+        if back > 0 {
+            let chunk = (i + 1) * per - back..(i + 1) * per;
+            trace_packets(
+                scene,
+                &mut stack,
+                shadows,
+                shadows.back_origin[i],
+                chunk,
+                key(per),
+                radiance,
+            );
+            traced += back as u64;
+        }
     }
     traced
+}
+
+/// Traces the rays `chunk` of the batch, all from `origin`, as packets, and adds the
+/// contributions of the unoccluded ones to `radiance`. `key` numbers the chunk's first ray
+/// for the coverage test; the others follow it.
+#[inline(always)]
+fn trace_packets(
+    scene: &RenderScene,
+    stack: &mut TraversalStack,
+    shadows: &ShadowBatch,
+    origin: Vec3A,
+    chunk: std::ops::Range<usize>,
+    key: RayKey,
+    radiance: &mut Rgb,
+) {
+    let count = chunk.len();
+    let (direction, t_max) = (
+        &shadows.direction[chunk.clone()],
+        &shadows.t_max[chunk.clone()],
+    );
+    let contribution = &shadows.contribution[chunk];
+    for first in (0..count).step_by(PACKET_SIZE) {
+        let rays = first..(first + PACKET_SIZE).min(count);
+        let packet = Packet::new(origin, &direction[rays.clone()], &t_max[rays.clone()]);
+        let key = RayKey {
+            ray: key.ray + first as u32,
+            ..key
+        };
+        let occluded = scene.occluded_covered_packet(stack, &packet, key);
+        // Summed in a local, in the same order: adding into the path's entry in memory
+        // made every addition wait for the store of the one before.
+        let mut sum = *radiance;
+        for (k, c) in contribution[rays].iter().enumerate() {
+            if occluded & (1 << k) == 0 {
+                sum += *c;
+            }
+        }
+        *radiance = sum;
+    }
 }

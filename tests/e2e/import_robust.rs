@@ -514,7 +514,8 @@ fn each_ignored_feature_is_named_once_per_file() {
     let warnings = local_warnings(&scene, dir.path());
     for expected in [
         "features.gltf: occlusion maps are ignored (3 materials)",
-        "features.gltf: KHR_materials_volume is ignored (3 materials)",
+        "features.gltf: KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is \
+         ignored: the path tracer measures the distance travelled inside the object (3 materials)",
         "features.gltf: the extension EXT_lights_ies is not supported; ignored",
     ] {
         assert_eq!(

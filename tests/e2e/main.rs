@@ -35,5 +35,7 @@ mod placement;
 mod sampler;
 mod shipped_scenes;
 mod textures;
+mod transmission;
 mod unlit;
 mod vertex_colors;
+mod volume;

@@ -6,6 +6,12 @@
 //! heavy-tailed error (rare light samples inside a narrow lobe) that two renders cannot
 //! estimate its standard error; that is the case MIS exists for, and it is measured on the
 //! glossy room instead (README).
+//!
+//! Light sampling alone also covers the rough glass sphere's transmission (shadow rays leave
+//! from the back side of a transmitting surface), whose narrow lobe a large light samples
+//! poorly: at roughness 0.3 with the 0.8 light, 32 samples per pixel gave a 4.4% standard
+//! error in red (heavy-tailed: 1.6% at 128, 0.6% at 512, no bias at any count), so the smooth
+//! cases take 256 light-only samples.
 
 use crate::common::*;
 use wavetrace::RenderSettings;
@@ -127,7 +133,7 @@ fn small_light_rough_surfaces_same_mean_with_every_strategy() {
 
 #[test]
 fn small_light_smooth_surfaces_same_mean_with_every_strategy() {
-    strategies_agree(0.2, 0.3, 64, 1024, 128);
+    strategies_agree(0.2, 0.3, 256, 1024, 128);
 }
 
 #[test]
@@ -137,5 +143,5 @@ fn large_light_rough_surfaces_same_mean_with_every_strategy() {
 
 #[test]
 fn large_light_smooth_surfaces_same_mean_with_every_strategy() {
-    strategies_agree(0.8, 0.3, 32, 32, 16);
+    strategies_agree(0.8, 0.3, 256, 32, 16);
 }

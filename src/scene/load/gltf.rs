@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
     AlphaCoverage, AlphaMode, Camera, Emitter, Material, MaterialTextures, Mesh, Name,
-    PunctualLight, SharedMesh, TextureSlot, Transform, VertexColors, VertexTangents,
+    PunctualLight, SharedMesh, TextureSlot, Transform, VertexColors, VertexTangents, Volume,
 };
 use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
@@ -33,6 +33,23 @@ const DEFAULT_ROUGHNESS: f32 = 0.5;
 /// F0 of dielectrics in the specular-glossiness to metallic-roughness conversion.
 const DIELECTRIC_F0: f32 = 0.04;
 
+/// The absorbing medium of `KHR_materials_volume` (`attenuationColor`, default white, and
+/// `attenuationDistance`, default infinite); its `thickness` is not needed by a path tracer,
+/// which measures the path inside the object (gltf_fix warns once).
+fn volume_of(m: &gltf::Material) -> Option<Volume> {
+    let volume = m.extension_value("KHR_materials_volume")?;
+    let channel = |i: usize| {
+        let c = volume["attenuationColor"][i]
+            .as_f64()
+            .map_or(1.0, |x| x as f32);
+        if c.is_finite() { c } else { 1.0 }
+    };
+    let distance = volume["attenuationDistance"]
+        .as_f64()
+        .map_or(f32::INFINITY, |d| d as f32);
+    Volume::from_attenuation(Rgb::new(channel(0), channel(1), channel(2)), distance)
+}
+
 /// How one glTF material appears in the world.
 struct ImportedMaterial {
     material: Material,
@@ -42,6 +59,8 @@ struct ImportedMaterial {
     uv_set: Option<u32>,
     /// `alphaMode` MASK or BLEND; `None` for OPAQUE.
     alpha: Option<AlphaCoverage>,
+    /// `KHR_materials_volume`'s absorbing medium, if it absorbs anything.
+    volume: Option<Volume>,
 }
 
 /// Decoded textures by glTF texture index and how their values are encoded.
@@ -143,6 +162,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         textures: MaterialTextures::default(),
         uv_set: None,
         alpha: None,
+        volume: None,
     };
 
     let scene = document
@@ -307,6 +327,9 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     }
                     if let Some(a) = imported.alpha {
                         world.insert_one(entity, a).expect("just spawned");
+                    }
+                    if let Some(v) = imported.volume {
+                        world.insert_one(entity, v).expect("just spawned");
                     }
                 }
             }
@@ -832,6 +855,7 @@ fn import_material(
             },
             uv_set,
             alpha,
+            volume: None,
         };
     }
     ImportedMaterial {
@@ -846,6 +870,7 @@ fn import_material(
         },
         uv_set,
         alpha,
+        volume: volume_of(m),
     }
 }
 

@@ -275,6 +275,15 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "material",
     );
+    count(
+        "KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is ignored: the \
+         path tracer measures the distance travelled inside the object",
+        with_keys(
+            "KHR_materials_volume",
+            &["thicknessFactor", "thicknessTexture"],
+        ),
+        "material",
+    );
     let handled = [
         "KHR_materials_clearcoat",
         "KHR_materials_sheen",
@@ -285,6 +294,7 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "KHR_materials_pbrSpecularGlossiness",
         "KHR_materials_unlit",
         "KHR_materials_variants",
+        "KHR_materials_volume",
     ];
     let mut ignored = BTreeMap::<String, usize>::new();
     for m in &materials {
