@@ -697,6 +697,26 @@ mod tests {
         }
     }
 
+    /// Random shadow packet `i` from the random streams `stream` and `stream + 1`: an origin
+    /// in the 10-unit cube and 1 to `PACKET_SIZE` rays toward points around a common target,
+    /// each ending there.
+    fn random_packet(
+        i: u32,
+        stream: u64,
+    ) -> (Vec3A, usize, [Vec3A; PACKET_SIZE], [f32; PACKET_SIZE]) {
+        let u = |d: u32| uniform(path_key(stream, i, 0), 0, d);
+        let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
+        let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
+        let n = 1 + i as usize % PACKET_SIZE;
+        let (mut directions, mut t_max) = ([Vec3A::ZERO; PACKET_SIZE], [0.0; PACKET_SIZE]);
+        for k in 0..n {
+            let v = |d: u32| uniform(path_key(stream + 1, i, k as u32), 0, d) - 0.5;
+            let to = target + 2.0 * Vec3A::new(v(0), v(1), v(2)) - origin;
+            (directions[k], t_max[k]) = (to.normalize(), to.length());
+        }
+        (origin, n, directions, t_max)
+    }
+
     #[test]
     fn shadow_packets_agree_with_the_reference_over_the_shadow_tree() {
         for (triangles, spheres, size) in [(36, 4, 4.0), (2000, 20, 1.0), (6000, 40, 1.0)] {
@@ -710,16 +730,7 @@ mod tests {
             let mut stack = TraversalStack::default();
             let (mut blocked, mut open) = (0, 0);
             for i in 0..400 {
-                let u = |d: u32| uniform(path_key(22, i, 0), 0, d);
-                let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
-                let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
-                let n = 1 + i as usize % PACKET_SIZE;
-                let (mut directions, mut t_max) = ([Vec3A::ZERO; PACKET_SIZE], [0.0; PACKET_SIZE]);
-                for k in 0..n {
-                    let v = |d: u32| uniform(path_key(23, i, k as u32), 0, d) - 0.5;
-                    let to = target + 2.0 * Vec3A::new(v(0), v(1), v(2)) - origin;
-                    (directions[k], t_max[k]) = (to.normalize(), to.length());
-                }
+                let (origin, n, directions, t_max) = random_packet(i, 22);
                 let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
                 let occluded = scene.occluded_packet(&mut stack, &packet);
                 for k in 0..n {
@@ -871,16 +882,7 @@ mod tests {
         let mut stack = TraversalStack::default();
         let (mut blocked, mut open) = (0, 0);
         for i in 0..400 {
-            let u = |d: u32| uniform(path_key(25, i, 0), 0, d);
-            let origin = Vec3A::new(u(0), u(1), u(2)) * 10.0;
-            let target = Vec3A::new(u(3), u(4), u(5)) * 10.0;
-            let n = 1 + i as usize % PACKET_SIZE;
-            let (mut directions, mut t_max) = ([Vec3A::ZERO; PACKET_SIZE], [0.0; PACKET_SIZE]);
-            for k in 0..n {
-                let v = |d: u32| uniform(path_key(26, i, k as u32), 0, d) - 0.5;
-                let to = target + 2.0 * Vec3A::new(v(0), v(1), v(2)) - origin;
-                (directions[k], t_max[k]) = (to.normalize(), to.length());
-            }
+            let (origin, n, directions, t_max) = random_packet(i, 25);
             let packet = Packet::new(origin, &directions[..n], &t_max[..n]);
             let occluded = scene.occluded_packet(&mut stack, &packet);
             assert_eq!(occluded >> n, 0, "packet {i}: bits past the packet");

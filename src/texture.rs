@@ -213,7 +213,7 @@ impl Texture {
             })
             .collect();
         let mut texture = Self::new(width, height, texels)?;
-        if channels % 2 == 0 {
+        if channels.is_multiple_of(2) {
             let alpha: Vec<f32> = data
                 .chunks_exact(channels)
                 .map(|t| alpha_of(t[channels - 1]))

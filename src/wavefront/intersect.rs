@@ -19,10 +19,10 @@ pub fn intersect_closest(
     hits.slot.resize(n, NO_HIT);
     hits.barycentric.resize(n, Vec2::ZERO);
     let mut stack = TraversalStack::default();
-    for i in 0..n {
+    for (i, &path) in path_keys.iter().enumerate().take(n) {
         let (origin, direction) = (rays.origin[i], rays.direction[i]);
         let key = RayKey {
-            path: path_keys[i],
+            path,
             bounce,
             ray: 0,
         };

@@ -3,65 +3,13 @@
 //! times render the same through the two-level BVH as flattened into one BVH. Every file is
 //! written by the test.
 
+use crate::common::GltfDoc;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use wavetrace::math::{Quat, Vec3};
 use wavetrace::scene::load::{UpAxis, import_model};
 use wavetrace::scene::{Mesh, SharedMesh};
 use wavetrace::{Image, Instancing, RenderScene, RenderSettings, flatten_with, load_scene};
-
-/// A glTF document whose one buffer is `<name>.bin` beside it.
-#[derive(Default)]
-struct Doc {
-    bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Doc {
-    /// Adds `data` as a buffer view and `accessor` reading it; returns the accessor's index.
-    fn push(&mut self, data: Vec<u8>, accessor: Value) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
-        self.views
-            .push(json!({"buffer": 0, "byteOffset": self.bytes.len(),
-                               "byteLength": data.len()}));
-        self.bytes.extend(data);
-        let mut accessor = accessor;
-        accessor["bufferView"] = json!(self.views.len() - 1);
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
-
-    fn floats<const N: usize>(&mut self, values: &[[f32; N]], kind: &str) -> usize {
-        let data = values
-            .iter()
-            .flatten()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
-        let mut accessor = json!({"componentType": 5126, "count": values.len(), "type": kind});
-        if kind == "VEC3" {
-            let lo = (0..3).map(|k| values.iter().map(|v| v[k]).fold(f32::MAX, f32::min));
-            let hi = (0..3).map(|k| values.iter().map(|v| v[k]).fold(f32::MIN, f32::max));
-            accessor["min"] = json!(lo.collect::<Vec<_>>());
-            accessor["max"] = json!(hi.collect::<Vec<_>>());
-        }
-        self.push(data, accessor)
-    }
-
-    fn write(self, dir: &Path, name: &str, mut doc: Value) -> PathBuf {
-        let bin = format!("{name}.bin");
-        std::fs::write(dir.join(&bin), &self.bytes).unwrap();
-        doc["asset"] = json!({"version": "2.0"});
-        doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
-        doc["bufferViews"] = json!(self.views);
-        doc["accessors"] = json!(self.accessors);
-        let path = dir.join(name);
-        std::fs::write(&path, serde_json::to_string(&doc).unwrap()).unwrap();
-        path
-    }
-}
 
 /// A torus around +Y (glTF's up) of radii 1 and 0.35 with `major x minor` quads, with
 /// per-vertex normals: positions, normals and triangle indices.
@@ -111,12 +59,13 @@ fn placements() -> Vec<(Vec3, Quat, Vec3)> {
 /// (rotations as normalized shorts, which the extension allows), else one node per
 /// placement, all sharing the mesh.
 fn write_tori(dir: &Path, name: &str, instanced: bool, segments: (u32, u32)) -> PathBuf {
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let (positions, normals, indices) = torus(segments.0, segments.1);
-    let position = doc.floats(&positions, "VEC3");
+    let position = doc.positions(&positions);
     let normal = doc.floats(&normals, "VEC3");
     let index = doc.push(
         indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+        None,
         json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
     );
     let placements = placements();
@@ -144,6 +93,7 @@ fn write_tori(dir: &Path, name: &str, instanced: bool, segments: (u32, u32)) -> 
                 .flatten()
                 .flat_map(|c| c.to_le_bytes())
                 .collect(),
+            None,
             json!({"componentType": 5122, "normalized": true, "count": quantized.len(),
                    "type": "VEC4"}),
         );
@@ -294,12 +244,13 @@ fn a_thousand_instances_render_as_their_flattened_twin() {
     // 1,000 nodes (a 10 x 10 x 10 grid, each turned, some mirrored and squashed) sharing one
     // torus of 192 triangles: the 1,000-instance case at a size the flat BVH holds.
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let (positions, normals, indices) = torus(12, 8);
-    let position = doc.floats(&positions, "VEC3");
+    let position = doc.positions(&positions);
     let normal = doc.floats(&normals, "VEC3");
     let index = doc.push(
         indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
+        None,
         json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
     );
     let mut nodes = Vec::new();
