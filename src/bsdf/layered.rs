@@ -246,13 +246,7 @@ impl Layered {
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
-        let weight = self.eval(wo, wi) * (wi.z.abs() / pdf);
-        weight.is_finite().then_some(BsdfSample {
-            wi,
-            weight,
-            pdf,
-            is_delta: false,
-        })
+        BsdfSample::non_delta(wi, self.eval(wo, wi), pdf)
     }
 }
 

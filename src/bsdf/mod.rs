@@ -78,6 +78,24 @@ pub struct BsdfSample {
     pub is_delta: bool,
 }
 
+impl BsdfSample {
+    /// The sample of a non-delta direction `wi` from its density `pdf` and BSDF value `f`;
+    /// `None` when the density is zero or NaN, or the weight is not finite.
+    #[inline]
+    pub(crate) fn non_delta(wi: Vec3A, f: Rgb, pdf: f32) -> Option<Self> {
+        if pdf.is_nan() || pdf <= 0.0 {
+            return None;
+        }
+        let weight = f * (wi.z.abs() / pdf);
+        weight.is_finite().then_some(BsdfSample {
+            wi,
+            weight,
+            pdf,
+            is_delta: false,
+        })
+    }
+}
+
 impl Bsdf {
     /// The render-side model of glTF metallic-roughness parameters: [`Bsdf::Lambertian`] when
     /// they reduce to it exactly (a non-metal with `specular` 0 and no transmission).

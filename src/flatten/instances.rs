@@ -10,8 +10,8 @@
 //! the coverage filter reads flat slots; instanced geometry is opaque and emits nothing.
 
 use super::meshes::flatten_mesh;
-use super::{Attributes, Columns};
-use crate::accel::build::{self as bvh, Bvh4};
+use super::{Attributes, Columns, build_tree};
+use crate::accel::build::Bvh4;
 use crate::accel::instances::{Instance, Instances, Prototype};
 use crate::accel::leaf_prims::LeafPrim;
 use crate::error::{Error, Result};
@@ -203,20 +203,6 @@ fn name_of(world: &hecs::World, entity: hecs::Entity) -> String {
     world
         .get::<&Name>(entity)
         .map_or_else(|_| "unnamed mesh".to_string(), |n| n.0.clone())
-}
-
-/// The BVH over `items`, or an error for geometry too degenerate for it.
-fn build_tree<T: obvhs::Boundable>(items: &[T], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
-    bvh::build_bvh(items).ok_or_else(|| {
-        Error::input(
-            path,
-            None,
-            format!(
-                "the geometry is too degenerate for the BVH (deeper than {})",
-                bvh::MAX_DEPTH
-            ),
-        )
-    })
 }
 
 /// The world box of a prototype's tree placed by `m`: its object box's eight corners

@@ -103,7 +103,7 @@ pub fn flatten_with(
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let bvh_start = Instant::now();
-    let (bvh, order) = build_bvh(&prims.columns.shapes, path)?;
+    let (bvh, order) = build_tree(&prims.columns.shapes, path)?;
     // The instanced meshes: their own trees and the top-level tree over their instances.
     let instances = instances::build(
         world,
@@ -336,10 +336,10 @@ fn any_mesh(world: &hecs::World, test: impl Fn(&Mesh) -> bool) -> bool {
         || world.query::<&SharedMesh>().iter().any(|s| test(&s.0))
 }
 
-/// The BVH over `shapes` and the map from slots to shapes, or an error for geometry too
-/// degenerate for it.
-fn build_bvh(shapes: &[Shape], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
-    bvh::build_bvh(shapes).ok_or_else(|| {
+/// The BVH over `items` (primitives or instance boxes) and the map from slots to items, or an
+/// error for geometry too degenerate for it.
+fn build_tree<T: obvhs::Boundable>(items: &[T], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
+    bvh::build_bvh(items).ok_or_else(|| {
         Error::input(
             path,
             None,
