@@ -67,6 +67,9 @@ pub struct RenderScene {
     /// Absorption coefficient of the medium inside each material (`KHR_materials_volume`),
     /// by material index; empty when no material absorbs.
     pub(crate) material_absorption: Vec<Rgb>,
+    /// Whether some material may transmit through a rough lobe or holds an absorbing medium:
+    /// the shade stage's choice of its path (`wavefront::shade::shade_hits`).
+    pub(crate) transmits_or_absorbs: bool,
     /// Textures per material, looked up at the hit's texture coordinates.
     #[doc(hidden)]
     pub material_textures: Vec<SurfaceTextures>,

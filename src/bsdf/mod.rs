@@ -162,6 +162,21 @@ impl Bsdf {
         }
     }
 
+    /// Whether [`Bsdf::transmits`] may hold once textures scale the material (a
+    /// metallic-roughness texture lowers `metallic`, so a metal with `transmission` may
+    /// transmit where its texture is below 1).
+    #[inline]
+    pub fn may_transmit(&self) -> bool {
+        match *self {
+            Bsdf::MetallicRoughness(params) => params.transmission > 0.0,
+            Bsdf::Layered(layered) => layered.base.transmission > 0.0,
+            Bsdf::Lambertian { .. }
+            | Bsdf::Mirror { .. }
+            | Bsdf::Dielectric { .. }
+            | Bsdf::Unlit { .. } => false,
+        }
+    }
+
     /// Whether the surface reflects nothing at all (a path ends on it; an unlit one shows its
     /// colour there).
     #[inline]
@@ -404,6 +419,14 @@ mod tests {
         ];
         for (b, (bsdf, transmits)) in cases.iter().enumerate() {
             assert_eq!(bsdf.transmits(), *transmits, "{bsdf:?}");
+            // Every scaling a texture may make keeps `transmits` within `may_transmit`.
+            for scale in [1.0, 0.5, 0.0] {
+                let scaled = bsdf.with_metallic_roughness_scaled(scale, scale);
+                assert!(
+                    !scaled.transmits() || bsdf.may_transmit(),
+                    "{bsdf:?} {scale}"
+                );
+            }
             let crossing = (0..2000).any(|i| {
                 let u = |d: u32| uniform(path_key(23, i, b as u32), 0, d);
                 let wo = (Vec3A::new(u(0), u(1), u(2)) * 2.0 - 1.0).normalize_or(Vec3A::Z);

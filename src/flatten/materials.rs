@@ -111,6 +111,14 @@ impl MaterialTable {
         self.materials.iter().map(|m| m.2).collect()
     }
 
+    /// Whether some material may transmit through a rough lobe (whatever its textures make
+    /// of it) or holds an absorbing medium.
+    pub(super) fn transmits_or_absorbs(&self) -> bool {
+        self.materials
+            .iter()
+            .any(|m| m.0.may_transmit() || m.2 != Rgb::ZERO)
+    }
+
     /// The textures each material reads, by index.
     pub(super) fn surface_textures(&self) -> Vec<SurfaceTextures> {
         self.materials.iter().map(|m| m.1).collect()

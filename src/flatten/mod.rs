@@ -181,6 +181,7 @@ pub fn flatten_with(
         material,
         emitter,
         material_textures: materials.surface_textures(),
+        transmits_or_absorbs: materials.transmits_or_absorbs(),
         material_absorption: materials.absorptions(),
         materials: materials.bsdfs(),
         textures: materials.interner.textures,

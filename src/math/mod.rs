@@ -36,7 +36,7 @@ pub fn max_component(c: Rgb) -> f32 {
 /// Moves a surface point off the surface, far enough along the geometric normal `n` that a
 /// ray leaving in direction `w` cannot hit the surface it starts on, whatever the rounding
 /// error `error` (per component) of `p` (pbrt's construction; handles leaving from inside).
-#[inline]
+#[inline(always)]
 pub fn offset_ray_origin(p: Vec3A, error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
     // Never zero: a point computed exactly (error 0, e.g. on the plane z = 0) still moves by
     // at least one float, so the surface it leaves lies strictly behind the new origin.

@@ -167,7 +167,7 @@ impl Sampler {
 
     /// Two uniform numbers for `dimension` of `bounce` (with the Sobol sampler, one 2-D
     /// pattern; independent: dimensions `dimension` and `dimension + 1`).
-    #[inline]
+    #[inline(always)]
     pub fn uniform2(self, key: u64, bounce: u32, dimension: u32) -> Vec2 {
         match self.sobol_pattern(key, bounce, dimension) {
             Some((pixel, index, pattern)) => {
@@ -179,7 +179,7 @@ impl Sampler {
 
     /// Three uniform numbers for light samples of `bounce` (the light choice, then the point
     /// on it; with the Sobol sampler a 1-D pattern and a 2-D one).
-    #[inline]
+    #[inline(always)]
     pub fn uniform3(self, key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
         match self.sobol_pattern(key, bounce, dimension) {
             Some((pixel, index, pattern)) => (

@@ -3,6 +3,7 @@
 //! buffer of a bounce refers to the same live path.
 
 use crate::film::FilmRegion;
+use crate::lights::LightUniforms;
 use crate::math::{Rgb, Vec2, Vec3A};
 
 /// Rays to intersect, one per live path.
@@ -10,10 +11,6 @@ use crate::math::{Rgb, Vec2, Vec3A};
 pub struct RayBatch {
     /// Ray origin, world space (already offset off the surface it leaves).
     pub origin: Vec<Vec3A>,
-    /// Shadow rays through the surface each path made (0 unless its BSDF transmits).
-    pub back_count: Vec<u32>,
-    /// Their shared origin, offset to the back side of the surface.
-    pub back_origin: Vec<Vec3A>,
     /// Unit direction, world space.
     pub direction: Vec<Vec3A>,
 }
@@ -127,6 +124,13 @@ pub struct ShadowBatch {
     pub t_max: Vec<f32>,
     /// Radiance added to the path if the ray is unoccluded.
     pub contribution: Vec<Rgb>,
+    /// The light-sample uniforms of the shadow rays, four to a group (the shade stage's
+    /// `shadow_ray_lattice`), made once per worker and shadow-ray count: zeroing the largest
+    /// lattice on the stack at every call of the shade stage cost as much as shading a dozen
+    /// paths.
+    pub lattice: Vec<LightUniforms>,
+    /// The shadow-ray count `lattice` was made for.
+    pub lattice_rays: u32,
 }
 
 impl ShadowBatch {

@@ -15,6 +15,23 @@ pub fn trace_shadow_rays(
     bounce: u32,
     paths: &mut PathState,
 ) -> u64 {
+    // Chosen once per scene, as the shade stage chooses: where no material transmits, no
+    // path has rays from a back side.
+    if scene.transmits_or_absorbs {
+        trace_all::<true>(scene, shadows, bounce, paths)
+    } else {
+        trace_all::<false>(scene, shadows, bounce, paths)
+    }
+}
+
+/// [`trace_shadow_rays`] with the rays from back sides (`THROUGH`) or without.
+#[inline(always)]
+fn trace_all<const THROUGH: bool>(
+    scene: &RenderScene,
+    shadows: &ShadowBatch,
+    bounce: u32,
+    paths: &mut PathState,
+) -> u64 {
     let per = shadows.per_path;
     let mut traced = 0;
     let mut stack = TraversalStack::default();
@@ -44,7 +61,11 @@ pub fn trace_shadow_rays(
         );
         traced += count as u64;
         // Rays through a transmitting surface, from its back side (none on opaque surfaces).
-        let back = shadows.back_count[i] as usize;
+        let back = if THROUGH {
+            shadows.back_count[i] as usize
+        } else {
+            0
+        };
         if back > 0 {
             let chunk = (i + 1) * per - back..(i + 1) * per;
             trace_packets(

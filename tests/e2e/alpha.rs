@@ -243,6 +243,7 @@ fn a_mask_cut_out_shows_the_emitter_behind_exactly_where_its_texture_is_transpar
     let half_view = 3.0 * (YFOV as f64 / 2.0).tan();
     let expected = (half_view - 1.0) / (2.0 * half_view);
     let found = bright_fraction(&image, reference);
+    eprintln!("mask cut-out: visible fraction {found:.4}, expected {expected:.4}");
     // Pixels straddling the edge go either way: one column of 64.
     assert!(
         (found - expected).abs() <= 1.0 / 64.0,
@@ -344,6 +345,7 @@ fn a_mask_cut_out_casts_a_shadow_of_its_shape() {
     let half_view = 0.5 * (YFOV as f64 / 2.0).tan();
     let expected = (half_view - 0.1) / (2.0 * half_view);
     let found = bright_fraction(&image, reference);
+    eprintln!("mask shadow: lit fraction {found:.4}, expected {expected:.4}");
     assert!(
         (found - expected).abs() <= 1.0 / 64.0,
         "lit fraction {found}, expected {expected}"

@@ -6,7 +6,8 @@
 //! A directional light's number is lux (/ 683), W/m^2 (`unitless`) or W/m^2 (`raw`).
 //!
 //! A model whose only light is a small emissive part goes into the lit room unless it also
-//! brings a camera; a model rendered as it is that comes out dark gets a warning.
+//! brings a camera (unlit surfaces count as glow), a model whose every surface is unlit
+//! renders as it is; a model rendered as it is that comes out dark gets a warning.
 
 use crate::import::{Buffer, punctual_light_doc, render_mean, scratch, write_gltf};
 use serde_json::json;
@@ -90,6 +91,60 @@ fn glowing_model(with_camera: bool) -> serde_json::Value {
             {"primitives": [{"attributes": {"POSITION": glow}, "material": 1}]}
         ]
     }))
+}
+
+/// [`glowing_model`] with `KHR_materials_unlit` surfaces: the small triangle is unlit
+/// (colour [1, 0.5, 0.25]) instead of emissive, and with `all_unlit` the ground is unlit too.
+fn unlit_model(all_unlit: bool, with_camera: bool) -> serde_json::Value {
+    let mut doc = glowing_model(with_camera);
+    let unlit = |colour: [f32; 4]| {
+        json!({"pbrMetallicRoughness": {"baseColorFactor": colour},
+               "extensions": {"KHR_materials_unlit": {}}})
+    };
+    doc["extensionsUsed"] = json!(["KHR_materials_unlit"]);
+    doc["materials"][1] = unlit([1.0, 0.5, 0.25, 1.0]);
+    if all_unlit {
+        doc["materials"][0] = unlit([0.5, 0.5, 0.5, 1.0]);
+    }
+    doc
+}
+
+/// Unlit surfaces show light as emitters do (camera and bounce rays see their colour): a
+/// model with a few of them among lit surfaces goes into the room unless it brings a camera,
+/// like a glowing one; a model whose every surface is unlit needs no light and renders as it
+/// is, showing exactly its colours.
+#[test]
+fn unlit_surfaces_light_a_file_as_emitters_do_and_an_all_unlit_file_renders_as_it_is() {
+    let dir = scratch("unlit-placement");
+    let in_room = |path: &std::path::Path| {
+        let (scene, placement) = load_scene_placed(path, &LoadOptions::default()).unwrap();
+        let room_light = scene
+            .world
+            .query::<&Name>()
+            .iter()
+            .any(|n| n.0 == "area light");
+        assert_eq!(room_light, placement == Placement::InRoom, "{path:?}");
+        (scene, placement)
+    };
+    let part = write_gltf(&dir, "unlit-part.gltf", &unlit_model(false, false));
+    assert_eq!(in_room(&part).1, Placement::InRoom);
+    let staged = write_gltf(&dir, "unlit-part-camera.gltf", &unlit_model(false, true));
+    assert_eq!(in_room(&staged).1, Placement::AsIs);
+    for with_camera in [false, true] {
+        let all = write_gltf(&dir, "unlit-all.gltf", &unlit_model(true, with_camera));
+        let (scene, placement) = in_room(&all);
+        assert_eq!(placement, Placement::AsIs, "camera: {with_camera}");
+        // Nothing but unlit surfaces on a black background: every pixel is a mix of the
+        // ground's grey, the triangle's colour and black, so no channel exceeds what the
+        // surfaces show, and the ground fills most of the framed view.
+        let flat = flatten(&scene.world, &all).unwrap();
+        let mean = render_mean(&flat);
+        println!("all unlit (camera: {with_camera}): image mean {mean}");
+        assert!(
+            mean.max_element() <= 1.0 && mean.min_element() > 0.1,
+            "{mean}"
+        );
+    }
 }
 
 #[test]

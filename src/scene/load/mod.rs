@@ -225,9 +225,9 @@ pub const BUILTIN_ROOM: &str = include_str!("../../../scenes/room.toml");
 /// extension (`.toml`, `.gltf`, `.glb`, `.obj`).
 ///
 /// A model file (glTF or OBJ) renders as it is only if it lights itself ([`lights_itself`]):
-/// it has punctual lights, or it has emitters *and* a camera (a scene set up for rendering).
-/// Any other model is a *bare model* — its glow alone (a few emissive decals) would leave it
-/// black — and is placed in the seed room ([`place_in_room`]) and seen from the room's
+/// it has punctual lights, or it has emitters or unlit surfaces *and* a camera (a scene set up
+/// for rendering), or every surface is unlit. Any other model is a *bare model* — its glow
+/// alone (a few emissive decals) would leave it black — and is placed in the seed room ([`place_in_room`]) and seen from the room's
 /// camera. A file rendered as it is uses its first camera, or a camera framing its bounding
 /// box when it has none.
 pub fn load_scene(path: &Path) -> Result<Scene> {

@@ -39,23 +39,48 @@ pub const ROOM_STAGE_FRONT: f32 = -ROOM_FLOOR / ROOM_VIEW_FILL + ROOM_EYE.x;
 /// edge-on).
 pub const FLAT_TURN_RATIO: f32 = 2.0;
 
-/// Whether an imported model lights itself: it has punctual lights, or it has emitters and a
-/// camera (a scene set up for rendering). Emitters alone do not count: a model whose only
-/// light is its own glow (emissive decals, a lamp's bulb) would render black but for them.
+/// Whether an imported model lights itself: it has punctual lights, or it has surfaces that
+/// show light (emitters, `KHR_materials_unlit` surfaces) and a camera (a scene set up for
+/// rendering), or every surface is unlit (nothing in it needs light: it looks as it does in
+/// any glTF viewer). Surfaces that show light without a camera do not count: a model whose
+/// only light is its own glow (emissive decals, a lamp's bulb) or a few unlit labels would
+/// render black but for them.
 pub fn lights_itself(world: &hecs::World) -> bool {
     let punctual = world.query::<&PunctualLight>().iter().next().is_some();
     let has_camera = world.query::<&Camera>().iter().next().is_some();
-    punctual || (has_camera && has_lights(world))
+    punctual || (has_camera && has_lights(world)) || all_unlit(world)
 }
 
-/// Whether the world has anything that emits light (an emitter of non-zero radiance, or a
-/// punctual light).
+/// Whether the world has anything that shows light: an emitter of non-zero radiance, a
+/// punctual light, or an unlit surface of non-black colour (it is no light source that
+/// shadow rays aim at, but camera and bounce rays see its colour, so it lights its
+/// neighbours as a glowing surface would).
 pub fn has_lights(world: &hecs::World) -> bool {
     let emitting = world
         .query::<&Emitter>()
         .iter()
         .any(|e| e.radiance.max_element() > 0.0);
-    emitting || world.query::<&PunctualLight>().iter().next().is_some()
+    let unlit = world
+        .query::<&Material>()
+        .iter()
+        .any(|m| matches!(m, Material::Unlit { color } if color.max_element() > 0.0));
+    emitting || unlit || world.query::<&PunctualLight>().iter().next().is_some()
+}
+
+/// Whether the world has surfaces and every one of them is unlit.
+fn all_unlit(world: &hecs::World) -> bool {
+    let mut query = world.query::<(
+        &Material,
+        Option<&Mesh>,
+        Option<&SharedMesh>,
+        Option<&Sphere>,
+    )>();
+    let mut surfaces = query
+        .iter()
+        .filter(|(_, mesh, shared, sphere)| mesh.is_some() || shared.is_some() || sphere.is_some())
+        .map(|(material, ..)| matches!(material, Material::Unlit { .. }))
+        .peekable();
+    surfaces.peek().is_some() && surfaces.all(|unlit| unlit)
 }
 
 /// Above this many vertices in all, a shared mesh contributes the eight corners of its box
