@@ -350,6 +350,31 @@ impl GltfDoc {
     }
 }
 
+/// The same document as a binary glTF (buffer 0 in the BIN chunk).
+pub fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut doc = doc.clone();
+    doc["buffers"][0] = json!({"byteLength": bin.len()});
+    let mut json = serde_json::to_vec(&doc).unwrap();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    for word in [2, total as u32, json.len() as u32] {
+        out.extend(word.to_le_bytes());
+    }
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
 /// The loaded meshes' vertices and their unit normals in world space.
 pub fn world_vertices(scene: &wavetrace::Scene) -> Vec<(Vec3, Option<Vec3>)> {
     let mut out = Vec::new();

@@ -5,7 +5,7 @@
 //! written by the test with the `meshopt` crate's encoders (the library wavetrace decodes
 //! with; the bitstreams are the extensions' own, fixed by their specifications).
 
-use crate::common::GltfDoc;
+use crate::common::{GltfDoc, glb};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use wavetrace::math::Vec3;
@@ -278,4 +278,68 @@ fn a_required_extension_without_compressed_views_loads() {
         .remove("NORMAL");
     let (loaded, _) = meshes(&doc.write(dir.path(), "plain.gltf", root));
     assert_eq!(loaded.len(), 2);
+}
+
+/// The JSON and buffer 0 of a file written by [`compressed`].
+fn json_and_bin(path: &Path) -> (Value, Vec<u8>) {
+    let doc: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let bin = path.with_file_name(doc["buffers"][0]["uri"].as_str().unwrap());
+    (doc, std::fs::read(bin).unwrap())
+}
+
+#[test]
+fn a_glb_with_an_unmarked_placeholder_buffer_loads_as_gltfpack_writes_it() {
+    // gltfpack's layout: the compressed data in the BIN chunk (buffer 0), the views in a
+    // buffer without uri after it, which the specification need not mark as a fallback.
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = compressed(dir.path(), "EXT_meshopt_compression", 0, false);
+    let (mut doc, bin) = json_and_bin(&gltf);
+    doc["buffers"][1]
+        .as_object_mut()
+        .unwrap()
+        .remove("extensions");
+    let path = dir.path().join("packed.glb");
+    std::fs::write(&path, glb(&doc, &bin)).unwrap();
+    let (from_glb, warnings) = meshes(&path);
+    let (from_gltf, _) = meshes(&gltf);
+    assert_eq!(from_glb, from_gltf, "{warnings:?}");
+}
+
+#[test]
+fn a_view_that_does_not_decode_reads_its_uncompressed_fallback_when_there_is_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (positions, normals, indices) = height_field();
+    let unit: Vec<[f32; 4]> = normals.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect();
+    let mut octahedral = meshopt::encoding::encode_filter_oct::<i16>(&unit, 16);
+    meshopt::encoding::decode_filter_oct(&mut octahedral);
+    let short: Vec<u16> = indices.iter().map(|&i| i as u16).collect();
+    // What each view holds uncompressed, in view order (as `compressed` writes them).
+    let views = [
+        le_bytes(&positions.concat(), f32::to_le_bytes),
+        le_bytes(&octahedral.concat(), i16::to_le_bytes),
+        le_bytes(&short, u16::to_le_bytes),
+        le_bytes(&indices[..indices.len() / 2], u32::to_le_bytes),
+    ];
+    let gltf = compressed(dir.path(), "EXT_meshopt_compression", 0, true);
+    let (mut doc, _) = json_and_bin(&gltf);
+    let mut fallback = vec![0u8; doc["buffers"][1]["byteLength"].as_u64().unwrap() as usize];
+    for (v, data) in views.iter().enumerate() {
+        let at = doc["bufferViews"][v]["byteOffset"].as_u64().unwrap() as usize;
+        fallback[at..at + data.len()].copy_from_slice(data);
+    }
+    std::fs::write(dir.path().join("fallback.bin"), &fallback).unwrap();
+    doc["buffers"][1] = json!({"byteLength": fallback.len(), "uri": "fallback.bin"});
+    doc["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    let path = dir.path().join("with-fallback.gltf");
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let (loaded, warnings) = meshes(&path);
+    let (plain, _) = meshes(&uncompressed(dir.path(), &octahedral));
+    assert_eq!(loaded.len(), 2, "{warnings:?}");
+    assert_eq!(
+        loaded[1], plain[1],
+        "the INDICES view read from the fallback"
+    );
+    let about_view: Vec<&String> = warnings.iter().filter(|w| w.contains("view 3")).collect();
+    assert_eq!(about_view.len(), 1, "{warnings:?}");
+    assert!(about_view[0].contains("uncompressed data"), "{warnings:?}");
 }

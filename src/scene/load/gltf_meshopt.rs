@@ -91,11 +91,13 @@ fn parse(name: &str, ext: &Value, view_length: usize) -> Result<Compressed, Stri
         filter,
     };
     let stride_ok = match (c.mode, c.filter) {
-        (Mode::Attributes, Filter::None) => c.stride % 4 == 0 && (4..=256).contains(&c.stride),
+        (Mode::Attributes, Filter::None) => {
+            c.stride.is_multiple_of(4) && (4..=256).contains(&c.stride)
+        }
         (Mode::Attributes, Filter::Octahedral | Filter::Color) => matches!(c.stride, 4 | 8),
         (Mode::Attributes, Filter::Quaternion) => c.stride == 8,
         (Mode::Attributes, Filter::Exponential) => {
-            c.stride % 4 == 0 && (4..=256).contains(&c.stride)
+            c.stride.is_multiple_of(4) && (4..=256).contains(&c.stride)
         }
         (Mode::Triangles | Mode::Indices, Filter::None) => matches!(c.stride, 2 | 4),
         (Mode::Triangles | Mode::Indices, _) => {
@@ -108,7 +110,7 @@ fn parse(name: &str, ext: &Value, view_length: usize) -> Result<Compressed, Stri
             c.stride, c.mode, c.filter
         ));
     }
-    if c.count == 0 || (c.mode == Mode::Triangles && c.count % 3 != 0) {
+    if c.count == 0 || (c.mode == Mode::Triangles && !c.count.is_multiple_of(3)) {
         return Err(format!(
             "{name}: count {} is not allowed with mode {:?}",
             c.count, c.mode
