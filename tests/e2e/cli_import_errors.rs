@@ -5,7 +5,7 @@
 //! panic, and no output file. The warning cases (degenerate triangles, zero-area emitters, a
 //! missing `.mtl`) must render, say so on stderr, and write an image without NaN.
 
-use crate::common::{check_failure, files_in};
+use crate::common::{check_failure, files_in, glb};
 
 use serde_json::{Value, json};
 use std::path::Path;
@@ -70,27 +70,6 @@ fn gltf_doc(positions: &[[f32; 3]], indices: &[u16], bin_name: &str) -> (Value, 
         "buffers": [{"byteLength": bin.len(), "uri": bin_name}]
     });
     (doc, bin)
-}
-
-/// The same document as a binary glTF (buffer 0 in the BIN chunk).
-fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
-    let mut doc = doc.clone();
-    doc["buffers"][0] = json!({"byteLength": bin.len()});
-    let mut json = serde_json::to_vec(&doc).unwrap();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = b"glTF".to_vec();
-    for word in [2, total as u32, json.len() as u32] {
-        out.extend(word.to_le_bytes());
-    }
-    out.extend(b"JSON");
-    out.extend(json);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(bin);
-    out
 }
 
 /// Adds an emissive material to the mesh and a perspective camera node 'Cam' (index 1), so

@@ -239,12 +239,15 @@ pub fn run_alone(test: &str, body: impl FnOnce()) {
     );
 }
 
-/// A glTF document whose one buffer is `<name>.bin` beside it, built from raw byte views.
+/// A glTF document whose one buffer is `<name>.bin` beside it, built from raw byte views;
+/// meshopt-compressed views ([`GltfDoc::push_meshopt`]) add a fallback buffer without data.
 #[derive(Default)]
 pub struct GltfDoc {
     bytes: Vec<u8>,
     views: Vec<Value>,
     accessors: Vec<Value>,
+    /// The meshopt extension and the byte length of its fallback buffer (buffer 1).
+    fallback: Option<(String, usize)>,
 }
 
 impl GltfDoc {
@@ -260,6 +263,41 @@ impl GltfDoc {
         }
         self.views.push(view);
         self.bytes.extend(data);
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// Adds a view compressed by meshopt: `compressed` goes to buffer 0, the view itself
+    /// (`decoded_length` bytes, `byteStride` when given) lies in the fallback buffer 1, and
+    /// `fields` (mode, filter, count, byteStride) complete the view's `extension` object.
+    pub fn push_meshopt(
+        &mut self,
+        extension: &str,
+        compressed: Vec<u8>,
+        fields: Value,
+        decoded_length: usize,
+        stride: Option<usize>,
+        accessor: Value,
+    ) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        let (_, fallback_length) = self.fallback.get_or_insert((extension.to_string(), 0));
+        let mut ext = fields;
+        ext["buffer"] = json!(0);
+        ext["byteOffset"] = json!(self.bytes.len());
+        ext["byteLength"] = json!(compressed.len());
+        let mut view = json!({"buffer": 1, "byteOffset": *fallback_length,
+                              "byteLength": decoded_length,
+                              "extensions": {extension: ext}});
+        if let Some(stride) = stride {
+            view["byteStride"] = json!(stride);
+        }
+        *fallback_length += decoded_length.next_multiple_of(4);
+        self.views.push(view);
+        self.bytes.extend(compressed);
         let mut accessor = accessor;
         accessor["bufferView"] = json!(self.views.len() - 1);
         self.accessors.push(accessor);
@@ -298,12 +336,43 @@ impl GltfDoc {
         std::fs::write(dir.join(&bin), &self.bytes).unwrap();
         doc["asset"] = json!({"version": "2.0"});
         doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
+        if let Some((extension, length)) = self.fallback {
+            doc["buffers"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({"byteLength": length, "extensions": {extension: {"fallback": true}}}));
+        }
         doc["bufferViews"] = json!(self.views);
         doc["accessors"] = json!(self.accessors);
         let path = dir.join(name);
         std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
         path
     }
+}
+
+/// The same document as a binary glTF (buffer 0 in the BIN chunk).
+pub fn glb(doc: &Value, bin: &[u8]) -> Vec<u8> {
+    let mut doc = doc.clone();
+    doc["buffers"][0] = json!({"byteLength": bin.len()});
+    let mut json = serde_json::to_vec(&doc).unwrap();
+    while !json.len().is_multiple_of(4) {
+        json.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    for word in [2, total as u32, json.len() as u32] {
+        out.extend(word.to_le_bytes());
+    }
+    out.extend(b"JSON");
+    out.extend(json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
 }
 
 /// The loaded meshes' vertices and their unit normals in world space.

@@ -772,7 +772,7 @@ fn unsupported_and_broken_files_give_errors_naming_file_and_problem() {
         "meshes": [{"name": "wires", "primitives": [{"attributes": {"POSITION": positions}}]}]
     }));
 
-    for ext in ["KHR_draco_mesh_compression", "EXT_meshopt_compression"] {
+    for ext in ["KHR_draco_mesh_compression", "EXT_lights_image_based"] {
         let mut doc = base.clone();
         doc["extensionsUsed"] = json!([ext]);
         doc["extensionsRequired"] = json!([ext]);

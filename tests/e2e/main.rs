@@ -29,6 +29,7 @@ mod large_obj;
 mod light_units;
 mod materials;
 mod memory;
+mod meshopt;
 mod mis;
 mod next_event;
 mod placement;

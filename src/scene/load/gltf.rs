@@ -12,6 +12,7 @@
 
 use super::{
     Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_deform, gltf_fix, gltf_geometry,
+    gltf_meshopt,
 };
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
@@ -127,13 +128,24 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     // itself, even those with a fallback.
     let mut json = json;
     json.extensions_required.clear();
-    let gltf = gltf::Gltf {
-        document: gltf::Document::from_json(json).map_err(gltf_error)?,
-        blob,
+    let meshopt = gltf_meshopt::uses_meshopt(&json);
+    let placeholders = if meshopt {
+        gltf_meshopt::placeholder_buffers(&json, blob.is_some())
+    } else {
+        Vec::new()
     };
+    let document = gltf::Document::from_json(json).map_err(gltf_error)?;
     let base = path.parent().unwrap_or(Path::new("."));
-    let gltf::Gltf { document, blob } = gltf;
-    let buffers = gltf_check::import_buffers(path, &document, base, blob)?;
+    let mut buffers = gltf_check::import_buffers(path, &document, base, blob, &placeholders)?;
+    let document = if meshopt {
+        // Compressed views become views of decoded buffers; the document is made again from
+        // the changed JSON.
+        let mut json = document.into_json();
+        gltf_meshopt::decode_views(path, &mut json, &mut buffers, &placeholders, &mut warnings);
+        gltf::Document::from_json(json).map_err(gltf_error)?
+    } else {
+        document
+    };
     gltf_check::check_ranges(path, &document)?;
 
     gltf_fix::survey(path, &document, &mut warnings);

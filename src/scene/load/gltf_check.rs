@@ -116,15 +116,22 @@ pub(super) fn path_is_glb(path: &Path) -> bool {
 }
 
 /// Loads every buffer (external file, data URI or the GLB's BIN chunk), naming the buffer
-/// and its file when one is missing, unreadable or shorter than its `byteLength`.
+/// and its file when one is missing, unreadable or shorter than its `byteLength`; the meshopt
+/// placeholders (`placeholders[i]`, see `gltf_meshopt::placeholder_buffers`) stay empty.
 pub(super) fn import_buffers(
     path: &Path,
     document: &gltf::Document,
     base: &Path,
     mut blob: Option<Vec<u8>>,
+    placeholders: &[bool],
 ) -> Result<Vec<gltf::buffer::Data>> {
     let mut out = Vec::new();
     for buffer in document.buffers() {
+        if placeholders.get(buffer.index()) == Some(&true) {
+            // A meshopt fallback without data: only compressed views name it.
+            out.push(gltf::buffer::Data(Vec::new()));
+            continue;
+        }
         let at = Some(format!("buffer {}", buffer.index()));
         let source = match buffer.source() {
             gltf::buffer::Source::Bin => "the GLB's BIN chunk".to_string(),

@@ -32,14 +32,14 @@ pub(super) const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
 ];
 
 /// Extensions handled or warned about by name elsewhere: not reported as unknown.
 const KNOWN: &[&str] = &[
-    // Used without being required, these leave uncompressed data that the importer reads.
+    // Used without being required, this leaves uncompressed data that the importer reads.
     "KHR_draco_mesh_compression",
-    "EXT_meshopt_compression",
-    "KHR_meshopt_compression",
     "KHR_animation_pointer",
     "KHR_materials_clearcoat",
     "KHR_materials_sheen",

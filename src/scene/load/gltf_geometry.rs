@@ -1,31 +1,17 @@
 //! Vertex data of glTF meshes beyond plain floats: attributes of any component type
 //! (`KHR_mesh_quantization`: byte, short, normalized or not) read and dequantized as the
-//! specification says, and the errors for compressed geometry wavetrace cannot decode
-//! (`KHR_draco_mesh_compression`, `EXT_meshopt_compression`, `KHR_meshopt_compression`).
+//! specification says, and the error for compressed geometry wavetrace cannot decode
+//! (`KHR_draco_mesh_compression`; meshopt is decoded by `gltf_meshopt`).
 
 use gltf::accessor::DataType;
 
 /// Extensions that compress geometry, with the advice given when a file needs one.
-const COMPRESSION: &[(&str, &str, &str)] = &[
-    (
-        "KHR_draco_mesh_compression",
-        "Draco",
-        "re-export the model with mesh compression turned off (in Blender's glTF exporter: \
+const COMPRESSION: &[(&str, &str, &str)] = &[(
+    "KHR_draco_mesh_compression",
+    "Draco",
+    "re-export the model with mesh compression turned off (in Blender's glTF exporter: \
          untick Compression)",
-    ),
-    (
-        "EXT_meshopt_compression",
-        "meshoptimizer",
-        "re-export the model without meshopt compression (gltfpack without -c or -cc, or \
-         Blender's glTF exporter)",
-    ),
-    (
-        "KHR_meshopt_compression",
-        "meshoptimizer",
-        "re-export the model without meshopt compression (gltfpack without -c or -cc, or \
-         Blender's glTF exporter)",
-    ),
-];
+)];
 
 /// The error message for a file whose geometry can only be read through a compression
 /// extension wavetrace does not decode, if `extension` is one.
@@ -229,8 +215,8 @@ mod tests {
             draco.contains("Draco") && draco.contains("re-export"),
             "{draco}"
         );
-        let meshopt = compression_message("EXT_meshopt_compression").unwrap();
-        assert!(meshopt.contains("meshoptimizer") && meshopt.contains("gltfpack"));
+        // Decoded (gltf_meshopt), not refused.
+        assert!(compression_message("EXT_meshopt_compression").is_none());
         assert!(compression_message("KHR_texture_transform").is_none());
     }
 }

@@ -11,6 +11,7 @@ mod gltf_check;
 mod gltf_deform;
 mod gltf_fix;
 mod gltf_geometry;
+mod gltf_meshopt;
 mod obj;
 mod obj_check;
 mod place;
@@ -40,7 +41,7 @@ pub struct Scene {
 }
 
 /// The up axis of an imported file.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum UpAxis {
     /// +Y up (glTF's convention, and Blender's OBJ export): rotated to +Z up.
@@ -66,7 +67,7 @@ impl UpAxis {
 ///
 /// The renderer's lights are radiometric: a point or spot light's intensity is W/sr, a
 /// directional light's irradiance W/m^2. The glTF specification's units are photometric.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum LightUnits {
     /// The specification's units, as Blender's exporter writes them in its default

@@ -1,5 +1,6 @@
 //! Placing imported models: the bare-model rule (a model that does not light itself goes
-//! into the seed room, as its subject, on the room's stage), `[[model]]` placement, a
+//! into the seed room, as its subject, on the room's stage), `[[model]]` placement (a file
+//! placed several times is loaded once: its meshes shared, its world copied), a
 //! framing camera for files without one, the choice of camera, and the dark-image check of
 //! files rendered as they are. These read and edit the authoring world (and, for the check,
 //! the finished image); rendering never comes here.
@@ -9,10 +10,11 @@ use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::math::{Affine3A, Vec3, luminance};
 use crate::scene::{
-    Camera, Emitter, Material, MaterialTextures, Mesh, Name, PunctualLight, SharedMesh, Sphere,
-    Transform, mesh_of,
+    AlphaCoverage, Camera, Emitter, EnvironmentLight, Material, MaterialTextures, Mesh, Name,
+    PunctualLight, SharedMesh, Sphere, Transform, VertexColors, VertexTangents, Volume, mesh_of,
 };
 use std::path::Path;
+use std::sync::Arc;
 
 /// The room camera's eye; it looks along +x with a 90 degree (square) view, so a point
 /// (x, y, z) is in view when |y| and |z| are at most x + 1. [`tests`] checks these against
@@ -295,6 +297,68 @@ pub(super) fn clear_props(world: &mut hecs::World, lo: Vec3, hi: Vec3) {
     }
 }
 
+/// Turns every [`Mesh`] of `model` into a [`SharedMesh`], so that copies of the model
+/// ([`copy_model`]) store each mesh once.
+pub(super) fn share_meshes(model: &mut hecs::World) {
+    let plain: Vec<hecs::Entity> = model
+        .query::<(hecs::Entity, &Mesh)>()
+        .iter()
+        .map(|(e, _)| e)
+        .collect();
+    for e in plain {
+        let mesh = model.remove_one::<Mesh>(e).expect("queried");
+        model
+            .insert_one(e, SharedMesh(Arc::new(mesh)))
+            .expect("exists");
+    }
+}
+
+/// A copy of every entity of `model`, component by component ([`SharedMesh`] data is
+/// shared, not copied).
+///
+/// # Panics
+/// When an entity has a component type this function does not list: a new component type
+/// must be added here (a model placed twice would otherwise lose it silently).
+pub(super) fn copy_model(model: &hecs::World) -> hecs::World {
+    let mut copy = hecs::World::new();
+    for entity in model.iter() {
+        let mut builder = hecs::EntityBuilder::new();
+        let mut copied = 0usize;
+        macro_rules! copy_components {
+            ($($component:ty),* $(,)?) => {$(
+                if let Some(c) = entity.get::<&$component>() {
+                    builder.add((*c).clone());
+                    copied += 1;
+                }
+            )*};
+        }
+        copy_components!(
+            Name,
+            Transform,
+            Mesh,
+            SharedMesh,
+            Sphere,
+            Material,
+            Emitter,
+            MaterialTextures,
+            VertexTangents,
+            VertexColors,
+            Volume,
+            AlphaCoverage,
+            PunctualLight,
+            Camera,
+            EnvironmentLight,
+        );
+        assert_eq!(
+            copied,
+            entity.component_types().count(),
+            "copy_model does not know a component type of the model's entities"
+        );
+        copy.spawn(builder.build());
+    }
+    copy
+}
+
 /// Moves every entity of `model` except its cameras into `world`, placed by `placement`
 /// (applied after the model's own transforms). `material` replaces the model's materials
 /// (and drops its textures and emission).
@@ -509,6 +573,7 @@ pub(super) fn select_camera(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::{Rgb, Vec4};
 
     #[test]
     fn fit_puts_the_bottom_centre_on_the_anchor_at_the_asked_size() {
@@ -545,6 +610,44 @@ mod tests {
         }
         let (lo, _) = bounding_box(&room.world).unwrap();
         assert_eq!(lo.z, ROOM_FLOOR);
+    }
+
+    #[test]
+    fn copies_share_the_meshes_and_keep_every_component() {
+        let mut model = unit_cube_world(Vec3::ONE);
+        let cube = model
+            .query::<(hecs::Entity, &Mesh)>()
+            .iter()
+            .next()
+            .unwrap()
+            .0;
+        model
+            .insert(
+                cube,
+                (
+                    Name("cube".into()),
+                    Transform::default(),
+                    VertexColors(vec![Vec4::ONE; 8]),
+                    MaterialTextures::default(),
+                ),
+            )
+            .unwrap();
+        model.spawn((
+            Name("lamp".into()),
+            PunctualLight::Point {
+                intensity: Rgb::ONE,
+            },
+        ));
+        share_meshes(&mut model);
+        assert_eq!(model.query::<&Mesh>().iter().count(), 0);
+        let copy = copy_model(&model);
+        assert_eq!(copy.len(), model.len());
+        let kinds = |w: &hecs::World| -> Vec<usize> {
+            w.iter().map(|e| e.component_types().count()).collect()
+        };
+        assert_eq!(kinds(&copy), kinds(&model));
+        let shared = |w: &hecs::World| w.query::<&SharedMesh>().iter().next().unwrap().0.clone();
+        assert!(Arc::ptr_eq(&shared(&copy), &shared(&model)));
     }
 
     fn unit_cube_world(size: Vec3) -> hecs::World {

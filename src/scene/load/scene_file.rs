@@ -15,7 +15,7 @@ use crate::scene::{
 };
 use crate::settings::{MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SHADOW_RAYS};
 use serde::Deserialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toml::Spanned;
@@ -667,6 +667,25 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
         }
     }
     let mut warnings = Vec::new();
+    // A file named by several `[[model]]` tables (with the same `up` and `light_units`) is
+    // loaded once; its meshes are shared by the placements ([`place::share_meshes`]).
+    type ModelKey = (PathBuf, UpAxis, LightUnits);
+    let model_key = |source: &Source, def: &ModelDef| -> ModelKey {
+        let file = source
+            .path
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(def.file.get_ref());
+        let file = std::fs::canonicalize(&file).unwrap_or(file);
+        (file, def.up, def.light_units)
+    };
+    let mut placements = HashMap::<ModelKey, usize>::new();
+    for (source, model) in &gathered.models {
+        *placements
+            .entry(model_key(source, model.get_ref()))
+            .or_default() += 1;
+    }
+    let mut loaded = HashMap::<ModelKey, hecs::World>::new();
     for (source, model) in &gathered.models {
         let def = model.get_ref();
         let err = |m: String| source.error(model.span().start, format!("model: {m}"));
@@ -687,7 +706,23 @@ fn spawn(gathered: Gathered, path: &Path) -> Result<Scene> {
                 )
             })?),
         };
-        let imported = import_model_with(&file, def.up, def.light_units)?;
+        let key = model_key(source, def);
+        let imported = match loaded.get(&key) {
+            Some(model) => Scene {
+                world: place::copy_model(model),
+                defaults: SceneDefaults::default(),
+                // Given with the first placement.
+                warnings: Vec::new(),
+            },
+            None => {
+                let mut imported = import_model_with(&file, def.up, def.light_units)?;
+                if placements[&key] > 1 {
+                    place::share_meshes(&mut imported.world);
+                    loaded.insert(key, place::copy_model(&imported.world));
+                }
+                imported
+            }
+        };
         if def.position.is_none() {
             if def.rotation.is_some() || def.scale.is_some() || def.fit.is_some() {
                 return Err(err(
