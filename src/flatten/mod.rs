@@ -100,10 +100,12 @@ pub fn flatten_with(
     check_memory(world, path, &instanced)?;
     let requests = meshes::flatten_meshes(world, path, &mut materials, &mut prims, &instanced)?;
     spheres::flatten_spheres(world, path, &mut materials, &mut prims)?;
+    crate::memory::trace_phase("shapes");
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let bvh_start = Instant::now();
     let (bvh, order) = build_tree(&prims.columns.shapes, path)?;
+    crate::memory::trace_phase("4-wide bvh");
     // The instanced meshes: their own trees and the top-level tree over their instances.
     let instances = instances::build(
         world,
@@ -148,6 +150,7 @@ pub fn flatten_with(
         .par_iter()
         .map(|&i| LeafPrim::new(&prims.columns.shapes[i as usize]))
         .collect();
+    crate::memory::trace_phase("leaf prims");
     let Primitives {
         columns,
         warnings,

@@ -31,8 +31,10 @@ const MIRROR_MIN_NS: f32 = 900.0;
 /// Loads an OBJ file (and its MTL libraries) into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let raw = super::read_text(path)?;
+    crate::memory::trace_phase("read");
     let mut warnings = Vec::new();
     let text = obj_check::preprocess(path, &raw, &mut warnings);
+    crate::memory::trace_phase("preprocess");
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let options = tobj::LoadOptions {
         triangulate: false,
@@ -85,7 +87,12 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         None,
     );
 
+    // The text is not needed past tobj's parse (the rare error below reads the file again):
+    // freed before the meshes are built.
+    drop(text);
+    drop(raw);
     let mut world = hecs::World::new();
+    crate::memory::trace_phase("tobj");
     let transform = Transform(up.world_from_file());
     let mut face_counter = 0usize;
     // Faces triangulated as fans because ear clipping failed, and faces skipped: counted for
@@ -93,7 +100,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let (mut fanned, mut first_fanned) = (0usize, None);
     let (mut skipped, mut first_skipped) = (0usize, None);
     let mut unknown_material_warned = false;
-    for model in &models {
+    // Each model's arrays are freed once its mesh is built.
+    for model in models {
         let m = &model.mesh;
         let name = if model.name.is_empty() {
             "unnamed".to_string()
@@ -178,7 +186,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             indices,
         };
         if mesh.positions.iter().any(|p| !p.is_finite())
-            && let Some((line, message)) = obj_check::non_finite_vertex(&text)
+            && let Some((line, message)) = non_finite_vertex_line(path)
         {
             return Err(Error::input(path, Some(format!("line {line}")), message));
         }
@@ -204,6 +212,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 .expect("just spawned");
         }
     }
+    crate::memory::trace_phase("meshes");
     let at = |line: Option<usize>| line.map_or(String::new(), |l| format!(", line {l}"));
     if let Some((line, why)) = first_fanned {
         warnings.push(format!(
@@ -234,6 +243,14 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         defaults: SceneDefaults::default(),
         warnings,
     })
+}
+
+/// The line and message of the file's first vertex that is not finite, read again from the
+/// file (an error path: the text is not kept while the meshes are built).
+fn non_finite_vertex_line(path: &Path) -> Option<(usize, String)> {
+    let raw = super::read_text(path).ok()?;
+    let text = obj_check::preprocess(path, &raw, &mut Vec::new());
+    obj_check::non_finite_vertex(&text)
 }
 
 fn plural(n: usize) -> &'static str {
