@@ -68,6 +68,7 @@ pub mod internals {
     pub use crate::geometry::Shape;
     pub use crate::lights::LightTable;
     pub use crate::lights::environment::Environment;
+    pub use crate::memory::trace_phase;
     pub use crate::render_scene::{PACKET_SIZE, Packet, Ray, TraversalStack};
     pub use crate::texture::{SurfaceTextures, Texture, TextureRef};
     pub use crate::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};

@@ -322,9 +322,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             },
         };
         let (scene, placement) = load_scene_placed(&args.scene, &options)?;
+        wavetrace::internals::trace_phase("loaded");
         // Refuse an unwritable output before spending time on the render.
         wavetrace::output::check_writable(&output)?;
         let flat = flatten(&scene.world, &args.scene)?;
+        wavetrace::internals::trace_phase("flattened");
         for warning in scene.warnings.iter().chain(flat.warnings()) {
             eprintln!("warning: {warning}");
         }

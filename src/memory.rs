@@ -164,3 +164,22 @@ mod tests {
         }
     }
 }
+
+/// A diagnostic for finding where memory peaks: with the environment variable
+/// `WAVETRACE_MEMTRACE` set, prints the resident memory now and its peak since the previous
+/// call (or the start), then resets that peak (Linux: `/proc/self/clear_refs`; so a later
+/// `/usr/bin/time -v` maximum covers only the last phase). `phase` names what just ended.
+pub fn trace_phase(phase: &str) {
+    if std::env::var_os("WAVETRACE_MEMTRACE").is_none() {
+        return;
+    }
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let mib = |field| kib_field(&status, field).unwrap_or(0) >> 20;
+    eprintln!(
+        "memory after {phase:>12}: {:5} MiB resident, peak since the last phase {:5} MiB",
+        mib("VmRSS:"),
+        mib("VmHWM:")
+    );
+    // Writing 5 resets the peak (VmHWM) to the current resident size.
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}

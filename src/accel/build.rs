@@ -84,6 +84,7 @@ pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> 
         (params, MAX_LEAF_SIZE)
     };
     let bvh2 = build_bvh2(shapes, params);
+    crate::memory::trace_phase("binary bvh");
     let mut bvh = Bvh4 {
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).

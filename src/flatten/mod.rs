@@ -34,7 +34,8 @@ use std::time::{Duration, Instant};
 
 /// Peak resident bytes per primitive that flattening adds to the world it reads: the staging
 /// shapes, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
-/// peaks at about 310 bytes per triangle in all, file and world included).
+/// peaks at about 240 bytes per triangle in all, file and world included; see
+/// docs/performance.md, "Memory per triangle").
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
 /// they are filled): the 2-million-triangle OBJ needs `ulimit -v` of about 1.1 GB where the
@@ -100,10 +101,12 @@ pub fn flatten_with(
     check_memory(world, path, &instanced)?;
     let requests = meshes::flatten_meshes(world, path, &mut materials, &mut prims, &instanced)?;
     spheres::flatten_spheres(world, path, &mut materials, &mut prims)?;
+    crate::memory::trace_phase("shapes");
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let bvh_start = Instant::now();
     let (bvh, order) = build_tree(&prims.columns.shapes, path)?;
+    crate::memory::trace_phase("4-wide bvh");
     // The instanced meshes: their own trees and the top-level tree over their instances.
     let instances = instances::build(
         world,
@@ -148,6 +151,7 @@ pub fn flatten_with(
         .par_iter()
         .map(|&i| LeafPrim::new(&prims.columns.shapes[i as usize]))
         .collect();
+    crate::memory::trace_phase("leaf prims");
     let Primitives {
         columns,
         warnings,
@@ -166,15 +170,15 @@ pub fn flatten_with(
         alpha_of_slot,
         alpha_records,
         leaf_prims,
-        vertex_normals: Columns::ordered(&columns.normals, &order),
-        vertex_uvs: Columns::ordered(&columns.uvs, &order),
+        vertex_normals: Columns::ordered(columns.normals, &order),
+        vertex_uvs: Columns::ordered(columns.uvs, &order),
         vertex_colors: if attributes.colors {
-            Columns::ordered(&columns.colors, &order)
+            Columns::ordered(columns.colors, &order)
         } else {
             Vec::new()
         },
         vertex_tangents: if attributes.tangents {
-            Columns::ordered(&columns.tangents, &order)
+            Columns::ordered(columns.tangents, &order)
         } else {
             Vec::new()
         },
@@ -276,15 +280,14 @@ impl Columns {
         }
     }
 
-    /// The column `unordered` in BVH slot order, or zeros if the scene lacks it.
-    fn ordered<T: Copy + Send + Sync + bytemuck::Zeroable>(
-        unordered: &[T],
-        order: &[u32],
-    ) -> Vec<T> {
-        if unordered.is_empty() {
+    /// The column `column` put in BVH slot order in place (no second copy: a 2-million-triangle
+    /// file's normals and UVs are 120 MB), or zeros if the scene lacks it.
+    fn ordered<T: Copy + bytemuck::Zeroable>(mut column: Vec<T>, order: &[u32]) -> Vec<T> {
+        if column.is_empty() {
             bytemuck::zeroed_vec(order.len())
         } else {
-            order.par_iter().map(|&i| unordered[i as usize]).collect()
+            permute_in_place(&mut column, order);
+            column
         }
     }
 }
@@ -337,6 +340,30 @@ fn any_mesh(world: &hecs::World, test: impl Fn(&Mesh) -> bool) -> bool {
         || world.query::<&SharedMesh>().iter().any(|s| test(&s.0))
 }
 
+/// Makes `items[slot]` the item that was at `order[slot]`, for a permutation `order`, by
+/// walking its cycles (one bit of bookkeeping per item).
+fn permute_in_place<T: Copy>(items: &mut [T], order: &[u32]) {
+    debug_assert_eq!(items.len(), order.len());
+    let mut placed = vec![false; items.len()];
+    for start in 0..items.len() {
+        if placed[start] {
+            continue;
+        }
+        let first = items[start];
+        let mut slot = start;
+        loop {
+            placed[slot] = true;
+            let from = order[slot] as usize;
+            if from == start {
+                items[slot] = first;
+                break;
+            }
+            items[slot] = items[from];
+            slot = from;
+        }
+    }
+}
+
 /// The BVH over `items` (primitives or instance boxes) and the map from slots to items, or an
 /// error for geometry too degenerate for it.
 fn build_tree<T: obvhs::Boundable>(items: &[T], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
@@ -381,4 +408,25 @@ fn slot_materials_lights_and_alpha(
         Vec::new()
     };
     (material, emitter, alpha)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn permuting_in_place_matches_gathering() {
+        // A permutation with cycles of several lengths and fixed points.
+        let n = 1000u32;
+        let order: Vec<u32> = (0..n).map(|i| (i * 377 + 11) % n).collect();
+        let items: Vec<u64> = (0..n as u64).map(|i| i * i + 7).collect();
+        let gathered: Vec<u64> = order.iter().map(|&i| items[i as usize]).collect();
+        let mut permuted = items.clone();
+        permute_in_place(&mut permuted, &order);
+        assert_eq!(permuted, gathered);
+        let identity: Vec<u32> = (0..n).collect();
+        let mut same = items.clone();
+        permute_in_place(&mut same, &identity);
+        assert_eq!(same, items);
+    }
 }

@@ -72,3 +72,36 @@ fn a_scene_too_large_for_the_address_space_is_refused_with_a_clear_error() {
     // many.gltf and many.bin only: no temporary image either.
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 }
+
+/// An OBJ whose parse alone would not fit is refused before tobj reads it: 2 million faces
+/// over three vertices (16 MB of text) under `ulimit -v` 400 MiB, where the parse used to
+/// end in an allocation abort (exit 134: tobj's face list of 218 MB).
+#[test]
+fn an_obj_too_large_to_parse_is_refused_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("many-faces.obj");
+    let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    text.push_str(&"f 1 2 3\n".repeat(2_000_000));
+    std::fs::write(&path, text).unwrap();
+    let output = dir.path().join("many-faces.png");
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 409600 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render", "--quiet", "--spp", "1", "--width", "8", "--height", "8", "-o",
+        ])
+        .arg(&output)
+        .arg(&path)
+        .output()
+        .unwrap();
+    let expected = [
+        "many-faces.obj",
+        "does not fit in memory",
+        "parsing its 2000000 faces",
+    ];
+    if let Err(e) = check_failure(&out, 1, &expected) {
+        panic!("{e}");
+    }
+    assert!(!output.exists(), "no image is written");
+}

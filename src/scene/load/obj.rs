@@ -30,9 +30,24 @@ const MIRROR_MIN_NS: f32 = 900.0;
 
 /// Loads an OBJ file (and its MTL libraries) into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
+    // Running out of memory while loading is refused with an error, not an allocation abort:
+    // the text is checked against its size, tobj's parse against its faces (below).
+    if let Ok(size) = std::fs::metadata(path).map(|m| m.len()) {
+        crate::memory::check_fits(
+            path,
+            &format!("reading the file ({:.1} MB)", size as f64 / 1e6),
+            crate::memory::Needed {
+                resident: size,
+                address_space: size,
+            },
+            crate::memory::available(),
+        )?;
+    }
     let raw = super::read_text(path)?;
+    crate::memory::trace_phase("read");
     let mut warnings = Vec::new();
     let text = obj_check::preprocess(path, &raw, &mut warnings);
+    crate::memory::trace_phase("preprocess");
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     let options = tobj::LoadOptions {
         triangulate: false,
@@ -44,6 +59,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     // also refuses face indices that tobj would mishandle.
     let face_lines = obj_check::face_lines(&text)
         .map_err(|(line, message)| Error::input(path, Some(format!("line {line}")), message))?;
+    check_parse_fits(path, face_lines.len(), text.len())?;
     let mut mtl_names: Vec<PathBuf> = Vec::new();
     let mtl_names_cell = std::cell::RefCell::new(&mut mtl_names);
     let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
@@ -85,7 +101,12 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         None,
     );
 
+    // The text is not needed past tobj's parse (the rare error below reads the file again):
+    // freed before the meshes are built.
+    drop(text);
+    drop(raw);
     let mut world = hecs::World::new();
+    crate::memory::trace_phase("tobj");
     let transform = Transform(up.world_from_file());
     let mut face_counter = 0usize;
     // Faces triangulated as fans because ear clipping failed, and faces skipped: counted for
@@ -93,7 +114,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let (mut fanned, mut first_fanned) = (0usize, None);
     let (mut skipped, mut first_skipped) = (0usize, None);
     let mut unknown_material_warned = false;
-    for model in &models {
+    // Each model's arrays are freed once its mesh is built.
+    for model in models {
         let m = &model.mesh;
         let name = if model.name.is_empty() {
             "unnamed".to_string()
@@ -178,7 +200,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             indices,
         };
         if mesh.positions.iter().any(|p| !p.is_finite())
-            && let Some((line, message)) = obj_check::non_finite_vertex(&text)
+            && let Some((line, message)) = non_finite_vertex_line(path)
         {
             return Err(Error::input(path, Some(format!("line {line}")), message));
         }
@@ -204,6 +226,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 .expect("just spawned");
         }
     }
+    crate::memory::trace_phase("meshes");
     let at = |line: Option<usize>| line.map_or(String::new(), |l| format!(", line {l}"));
     if let Some((line, why)) = first_fanned {
         warnings.push(format!(
@@ -234,6 +257,42 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         defaults: SceneDefaults::default(),
         warnings,
     })
+}
+
+/// Resident bytes per face that tobj's parse takes at its peak: its face list (104 bytes a
+/// face, up to twice that while the list grows), its map of distinct vertices, the models it
+/// returns. Measured: a 2-million-triangle grid (75 MB of text) peaks 375 MB above the text.
+const PARSE_RESIDENT_PER_FACE: u64 = 200;
+/// The same in address space (allocator arenas, vectors reserved before they are filled): the
+/// same grid loads under `ulimit -v` 700 MB and aborts under 600 MB.
+const PARSE_ADDRESS_SPACE_PER_FACE: u64 = 300;
+
+/// Refuses a file whose parse would not fit in the memory the process can still take
+/// (see [`crate::memory`]): `faces` polygons in `text_len` bytes of text (the vertex
+/// arrays, at most a few bytes per byte of text, are counted through the text).
+fn check_parse_fits(path: &Path, faces: usize, text_len: usize) -> Result<()> {
+    let (faces, text) = (faces as u64, text_len as u64);
+    crate::memory::check_fits(
+        path,
+        &format!("parsing its {faces} faces"),
+        crate::memory::Needed {
+            resident: faces
+                .saturating_mul(PARSE_RESIDENT_PER_FACE)
+                .saturating_add(text),
+            address_space: faces
+                .saturating_mul(PARSE_ADDRESS_SPACE_PER_FACE)
+                .saturating_add(2 * text),
+        },
+        crate::memory::available(),
+    )
+}
+
+/// The line and message of the file's first vertex that is not finite, read again from the
+/// file (an error path: the text is not kept while the meshes are built).
+fn non_finite_vertex_line(path: &Path) -> Option<(usize, String)> {
+    let raw = super::read_text(path).ok()?;
+    let text = obj_check::preprocess(path, &raw, &mut Vec::new());
+    obj_check::non_finite_vertex(&text)
 }
 
 fn plural(n: usize) -> &'static str {

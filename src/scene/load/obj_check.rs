@@ -5,63 +5,34 @@
 //! huge `usize` and multiplies it, which overflows (a panic in debug builds, wrong data in
 //! release; found by fuzzing). Checking here also lets every message name the line and value.
 
+use std::borrow::Cow;
+
 /// The OBJ text as tobj should read it, with the same line numbers: a line ending in `\\`
 /// continues on the next (joined here, the next left empty); lines (`l`), points (`p`) and faces
 /// of fewer than three vertices are blanked, since tobj would drop them silently or make a
 /// triangle of `l 1 2 3`. Each kind of dropped element gets one warning; so does `usemtl` in a
-/// file that loads no material library.
-pub(super) fn preprocess(path: &std::path::Path, text: &str, warnings: &mut Vec<String>) -> String {
-    let lines: Vec<&str> = text.lines().collect();
-    let mut out: Vec<String> = Vec::with_capacity(lines.len());
-    // (count, first line) of each dropped kind.
-    let mut dropped = [(0usize, 0usize); 3];
-    let (mut usemtl, mut mtllib) = (None, false);
-    let mut i = 0;
-    while i < lines.len() {
-        let first = i;
-        let mut logical = lines[i].to_string();
-        while logical.trim_end().ends_with('\\') && i + 1 < lines.len() {
-            let kept = logical.trim_end();
-            logical = format!("{} {}", &kept[..kept.len() - 1], lines[i + 1]);
-            i += 1;
-        }
-        if logical.trim_end().ends_with('\\') {
-            let kept = logical.trim_end();
-            logical = kept[..kept.len() - 1].to_string();
-        }
-        let mut words = logical.split_whitespace();
-        let kind = match words.next() {
-            Some("l") => Some(0),
-            Some("p") => Some(1),
-            Some("f") if matches!(words.clone().count(), 1 | 2) => Some(2),
-            Some("mtllib") => {
-                mtllib = true;
-                None
-            }
-            Some("usemtl") => {
-                usemtl.get_or_insert(first + 1);
-                None
-            }
-            _ => None,
-        };
-        if let Some(k) = kind {
-            dropped[k].0 += 1;
-            if dropped[k].1 == 0 {
-                dropped[k].1 = first + 1;
-            }
-            logical.clear();
-        }
-        out.push(logical);
-        out.extend(std::iter::repeat_n(String::new(), i - first));
-        i += 1;
-    }
+/// file that loads no material library. The text itself when nothing changes (most files: no
+/// copy of a large file), else one new string.
+pub(super) fn preprocess<'a>(
+    path: &std::path::Path,
+    text: &'a str,
+    warnings: &mut Vec<String>,
+) -> Cow<'a, str> {
+    let summary = rewrite(text, None);
+    let out = if summary.changed {
+        let mut out = String::with_capacity(text.len() + 1);
+        rewrite(text, Some(&mut out));
+        Cow::Owned(out)
+    } else {
+        Cow::Borrowed(text)
+    };
     let file = path.display();
     let what = [
         "line elements (l) are not rendered",
         "point elements (p) are not rendered",
         "faces with fewer than 3 vertices are skipped",
     ];
-    for (k, (count, line)) in dropped.into_iter().enumerate() {
+    for (k, (count, line)) in summary.dropped.into_iter().enumerate() {
         if count > 0 {
             warnings.push(format!(
                 "{file}: {} ({count}, first at line {line})",
@@ -69,15 +40,85 @@ pub(super) fn preprocess(path: &std::path::Path, text: &str, warnings: &mut Vec<
             ));
         }
     }
-    if let (Some(line), false) = (usemtl, mtllib) {
+    if let (Some(line), false) = (summary.usemtl, summary.mtllib) {
         warnings.push(format!(
             "{file}: line {line}: usemtl names a material but the file loads no material \
              library (mtllib); using a default grey"
         ));
     }
-    let mut joined = out.join("\n");
-    joined.push('\n');
-    joined
+    out
+}
+
+/// What [`rewrite`] found.
+#[derive(Default)]
+struct Rewrite {
+    /// (count, first line) of each dropped kind: lines, points, short faces.
+    dropped: [(usize, usize); 3],
+    /// The first `usemtl` line.
+    usemtl: Option<usize>,
+    /// Whether some `mtllib` line exists.
+    mtllib: bool,
+    /// Whether the text needs rewriting (a continuation or a dropped element).
+    changed: bool,
+}
+
+/// Reads `text` line by line as [`preprocess`] describes, writing the rewritten text to `out`
+/// if given (a pass without `out` only finds whether a rewrite is needed).
+fn rewrite(text: &str, mut out: Option<&mut String>) -> Rewrite {
+    let mut found = Rewrite::default();
+    let mut lines = text.lines().enumerate().peekable();
+    while let Some((first, line)) = lines.next() {
+        let mut logical = Cow::Borrowed(line);
+        let mut joined = 0;
+        while logical.trim_end().ends_with('\\') {
+            let kept = logical.trim_end();
+            let kept = kept[..kept.len() - 1].to_string();
+            found.changed = true;
+            logical = match lines.next() {
+                Some((_, next)) => {
+                    joined += 1;
+                    Cow::Owned(format!("{kept} {next}"))
+                }
+                None => {
+                    logical = Cow::Owned(kept);
+                    break;
+                }
+            };
+        }
+        let mut words = logical.split_whitespace();
+        let kind = match words.next() {
+            Some("l") => Some(0),
+            Some("p") => Some(1),
+            Some("f") if matches!(words.clone().count(), 1 | 2) => Some(2),
+            Some("mtllib") => {
+                found.mtllib = true;
+                None
+            }
+            Some("usemtl") => {
+                found.usemtl.get_or_insert(first + 1);
+                None
+            }
+            _ => None,
+        };
+        if let Some(k) = kind {
+            found.changed = true;
+            found.dropped[k].0 += 1;
+            if found.dropped[k].1 == 0 {
+                found.dropped[k].1 = first + 1;
+            }
+        }
+        if let Some(out) = out.as_deref_mut() {
+            if kind.is_none() {
+                out.push_str(&logical);
+            }
+            out.push('\n');
+            // The lines joined into this one stay, empty, to keep the line numbers.
+            for _ in 0..joined {
+                out.push('\n');
+            }
+        }
+    }
+    found
 }
 
 /// The 1-based line of every polygon tobj returns, in file order, or the first bad face index
