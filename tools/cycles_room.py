@@ -30,8 +30,11 @@ a bias), light threshold 0 (no culling of dim lights), bounces up to 1024 of eve
 wavetrace's max depth; both play Russian roulette), caustics on. The fixed arm renders with
 adaptive sampling off; the adaptive arm with Cycles' default threshold 0.01 (minimum samples
 automatic). Time: Cycles' own time limit (`cycles.time_limit`, which excludes the scene sync)
-with an unbounded sample count; the seconds printed are the wall time of the render call,
-sync included, and the samples are the last pass Cycles reports. wavetrace runs as
+with an unbounded sample count; the seconds in the table are Cycles' own clock from its first
+sample pass to its last (path tracing without sync and saving; `wall` adds both), the samples
+the last pass it reports. Cycles schedules passes in growing batches from its measured speed
+and may overrun the limit when the machine's load rises, so the table also gives the error
+times the seconds (inverse efficiency), which is the equal-time ratio whatever the overrun. wavetrace runs as
 `examples/equal_time.rs --time` (render time without the scene load: whole passes while the
 next fits), fixed (`--noise-threshold` absent) or adaptive (its default threshold 0.05).
 
@@ -46,6 +49,7 @@ import re
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 import bpy
@@ -228,18 +232,11 @@ def cmd_build(args):
 
 
 class CyclesRun:
-    """Renders an open .blend with Cycles; remembers the last sample pass Cycles reported."""
+    """Renders a .blend with Cycles; tells the last sample pass Cycles reported."""
 
     def __init__(self, blend):
         bpy.ops.wm.open_mainfile(filepath=blend)
         self.scene = bpy.context.scene
-        self.last_sample = 0
-        bpy.app.handlers.render_stats.append(self._stats)
-
-    def _stats(self, stats):
-        m = re.search(r"Sample (\d+)/(\d+)", stats)
-        if m:
-            self.last_sample = max(self.last_sample, int(m.group(1)))
 
     def render(self, out, seed, spp=None, seconds=None, adaptive=False):
         s = self.scene
@@ -251,10 +248,26 @@ class CyclesRun:
         c.samples = spp if spp else 1 << 24
         c.time_limit = seconds or 0.0
         s.render.filepath = out
-        self.last_sample = 0
-        start = time.perf_counter()
-        bpy.ops.render.render(write_still=True)
-        return time.perf_counter() - start, self.last_sample
+        # Blender prints its progress ("Sample N/M") on the process's standard output, and
+        # the render_stats handler is not called in background mode: read it from there.
+        sys.stdout.flush()
+        saved = os.dup(1)
+        with tempfile.TemporaryFile() as log:
+            os.dup2(log.fileno(), 1)
+            try:
+                start = time.perf_counter()
+                bpy.ops.render.render(write_still=True)
+                seconds = time.perf_counter() - start
+            finally:
+                os.dup2(saved, 1)
+                os.close(saved)
+            log.seek(0)
+            progress = re.findall(rb"Time:(\d+):([\d.]+) .*Sample (\d+)/\d+", log.read())
+        # Cycles' own clock from the first sample pass to the last: path tracing without the
+        # scene sync (BVH, shaders, lights) and without saving.
+        clock = [60 * int(m) + float(sec) for m, sec, _ in progress]
+        traced = clock[-1] - clock[0] if clock else float("nan")
+        return seconds, max((int(n) for _, _, n in progress), default=0), traced
 
 
 def image_error(tool, reference, image):
@@ -277,9 +290,10 @@ def exr_mean(path):
 
 def cmd_render(args):
     run = CyclesRun(os.path.abspath(args.blend))
-    seconds, spp = run.render(os.path.abspath(args.out), args.seed, spp=args.spp,
-                              seconds=args.time, adaptive=args.adaptive)
-    print(f"cycles: {spp} samples (last pass) in {seconds:.2f} s -> {args.out}")
+    seconds, spp, traced = run.render(os.path.abspath(args.out), args.seed, spp=args.spp,
+                                      seconds=args.time, adaptive=args.adaptive)
+    print(f"cycles: {spp} samples (last pass) in {seconds:.2f} s ({traced:.2f} s path "
+          f"tracing) -> {args.out}")
 
 
 def cmd_compare(args):
@@ -334,31 +348,37 @@ def cmd_table(args):
                 if renderer == "wavetrace":
                     r = wavetrace_run(example, glb, args.wt_ref, budget, seed, mode == ADAPTIVE)
                 else:
-                    seconds, spp = run.render(scratch, seed, seconds=budget,
-                                              adaptive=mode == ADAPTIVE)
+                    wall, spp, traced = run.render(scratch, seed, seconds=budget,
+                                                   adaptive=mode == ADAPTIVE)
                     r = image_error(error_tool, args.cycles_ref, scratch)
-                    r.update(spp=float(spp), s=seconds)
+                    r.update(spp=float(spp), s=traced, wall=wall)
                 results.setdefault((budget, mode, renderer), []).append(r)
                 line = f"{budget:g} s {mode} {renderer} seed {seed}: {r}"
                 print(line, flush=True)
                 log.write(line + "\n")
                 log.flush()
     print("\nmedians (spp: wavetrace's mean per pixel; Cycles' last sample pass):")
-    print("| budget | sampling | renderer | spp | s | RMSE | MSE | rel. MSE | top 1% |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| budget | sampling | renderer | spp | s | RMSE | MSE | rel. MSE | top 1% | MSE x s "
+          "| rel. MSE x s |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     med = {}
     for key in sorted(results):
         runs = results[key]
+        for r in runs:  # inverse efficiency: the error times the seconds it took
+            r["mse_s"], r["rel_s"] = r["mse"] * r["s"], r["rel"] * r["s"]
         med[key] = {k: statistics.median(r[k] for r in runs) for k in runs[0]}
         m = med[key]
         print(f"| {key[0]:g} s | {key[1]} | {key[2]} | {m['spp']:.1f} | {m['s']:.2f} | "
-              f"{m['rmse']:.4f} | {m['mse']:.6f} | {m['rel']:.4f} | {m['top']:.1f}% |")
-    print("\nratios wavetrace / Cycles (medians):")
+              f"{m['rmse']:.4f} | {m['mse']:.6f} | {m['rel']:.4f} | {m['top']:.1f}% | "
+              f"{m['mse_s']:.5f} | {m['rel_s']:.4f} |")
+    print("\nratios wavetrace / Cycles (medians): at the budget, and of the error x seconds "
+          "(equal time when a renderer overran its budget)")
     for budget in args.budgets:
         for mode in (FIXED, ADAPTIVE):
             w, c = med[(budget, mode, "wavetrace")], med[(budget, mode, "cycles")]
             print(f"{budget:g} s {mode}: MSE {w['mse'] / c['mse']:.3f}, relative MSE "
-                  f"{w['rel'] / c['rel']:.3f}")
+                  f"{w['rel'] / c['rel']:.3f}; MSE x s {w['mse_s'] / c['mse_s']:.3f}, "
+                  f"relative MSE x s {w['rel_s'] / c['rel_s']:.3f}")
 
 
 def main():
