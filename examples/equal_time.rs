@@ -116,6 +116,8 @@ fn main() -> anyhow::Result<()> {
     base.validate()?;
     let pixels = base.pixel_count();
     let mut runs: Vec<(f64, f64, ImageError)> = Vec::new();
+    // Rays (camera, bounce and shadow) per pixel: a cost that does not depend on the load.
+    let mut rays_per_pixel: Vec<f64> = Vec::new();
     for seed in args.seed..args.seed + args.seeds {
         let settings = RenderSettings { seed, ..base };
         let start = Instant::now();
@@ -144,8 +146,11 @@ fn main() -> anyhow::Result<()> {
         let image = film.resolve();
         let e = image_error(&image, &reference).context("size differs from the reference")?;
         let spp = stats.samples as f64 / pixels as f64;
+        let rays =
+            (stats.camera_rays + stats.bounce_rays + stats.shadow_rays) as f64 / pixels as f64;
+        rays_per_pixel.push(rays);
         println!(
-            "seed {seed}: {spp:.1} spp in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \
+            "seed {seed}: {spp:.1} spp, {rays:.1} rays per pixel in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \
              relative mse {:.5}, top 1% of pixels hold {:.1}% of the squared error",
             e.rmse(),
             e.rmse() / e.reference_mean,
@@ -167,11 +172,14 @@ fn main() -> anyhow::Result<()> {
         (runs.iter().map(|r| (r.2.mse - mse).powi(2)).sum::<f64>() / (n - 1.0).max(1.0) / n).sqrt();
     println!(
         "mean of {} runs: {spp:.1} spp in {seconds:.2} s: mse {mse:.6} +- {mse_error:.6}, \
-         relative mse {relative:.5}, top 1% share {:.1}%; mse x seconds {:.6}, mse x spp {:.5}",
+         relative mse {relative:.5}, top 1% share {:.1}%; mse x seconds {:.6}, mse x spp {:.5}, \
+         mse x rays per pixel {:.4}, relative mse x rays per pixel {:.3}",
         runs.len(),
         100.0 * mean(&|r| r.2.top_percent_share),
         mse * seconds,
-        mse * spp
+        mse * spp,
+        mse * rays_per_pixel.iter().sum::<f64>() / n,
+        relative * rays_per_pixel.iter().sum::<f64>() / n
     );
     // Medians resist a run slowed by other work on the machine or struck by a rare firefly.
     let median = |f: &dyn Fn(&(f64, f64, ImageError)) -> f64| {

@@ -24,7 +24,7 @@ def wavetrace(example, reference, budget, seed, extra):
            "--seed", str(seed)] + extra
     out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout
     line = next(l for l in out.splitlines() if l.startswith("seed "))
-    m = re.search(r"([\d.]+) spp in ([\d.]+) s: rmse ([\d.]+).*relative mse ([\d.]+), top 1% "
+    m = re.search(r"([\d.]+) spp, [\d.]+ rays per pixel in ([\d.]+) s: rmse ([\d.]+).*relative mse ([\d.]+), top 1% "
                   r"of pixels hold ([\d.]+)%", line)
     spp, seconds, rmse, rel, top = map(float, m.groups())
     return {"spp": spp, "s": seconds, "rmse": rmse, "rel": rel, "top": top}
