@@ -435,3 +435,15 @@ fn compressed_instance_transforms_decode_through_the_exponential_and_quaternion_
     // And near the transforms encoded (15-bit mantissas, 12-bit quaternion components).
     assert!((packed[1][9] - 1.5).abs() < 1e-3 && (packed[2][11] - 0.125).abs() < 1e-3);
 }
+
+#[test]
+fn compressed_views_are_decoded_even_when_extensions_used_forgets_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = compressed(dir.path(), "KHR_meshopt_compression", 1, false);
+    let (mut doc, _) = json_and_bin(&gltf);
+    doc["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    doc["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    let path = dir.path().join("unlisted.gltf");
+    std::fs::write(&path, doc.to_string()).unwrap();
+    assert_eq!(meshes(&path).0, meshes(&gltf).0);
+}
