@@ -343,3 +343,107 @@ fn a_view_that_does_not_decode_reads_its_uncompressed_fallback_when_there_is_one
     assert_eq!(about_view.len(), 1, "{warnings:?}");
     assert!(about_view[0].contains("uncompressed data"), "{warnings:?}");
 }
+
+/// A triangle drawn by three `EXT_mesh_gpu_instancing` instances whose translations and
+/// rotations are the decoded output of the EXPONENTIAL and QUATERNION filters: with
+/// `compress`, stored compressed with those filters; else as the plain decoded values.
+fn instanced(dir: &Path, compress: bool) -> PathBuf {
+    let translations: Vec<[f32; 3]> = vec![[0.0, 0.0, 0.0], [1.5, -0.25, 3.0], [-2.0, 0.5, 0.125]];
+    let rotations: Vec<[f32; 4]> = vec![
+        [0.0, 0.0, 0.0, 1.0],
+        [0.0, 0.6, 0.0, 0.8],
+        [0.5, -0.5, 0.5, 0.5],
+    ];
+    let exp = meshopt::encoding::encode_filter_exp(
+        &translations,
+        15,
+        meshopt::EncodeExpMode::SharedVector,
+    );
+    let quat = meshopt::encoding::encode_filter_quat(&rotations, 12);
+    let (mut exp_decoded, mut quat_decoded) = (exp.clone(), quat.clone());
+    meshopt::encoding::decode_filter_exp(&mut exp_decoded);
+    meshopt::encoding::decode_filter_quat(&mut quat_decoded);
+    let mut doc = GltfDoc::default();
+    let position = doc.positions(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+    let extension = "EXT_meshopt_compression";
+    let (translation, rotation) = if compress {
+        let t = doc.push_meshopt(
+            extension,
+            meshopt::encoding::encode_vertex_buffer(&exp).unwrap(),
+            json!({"mode": "ATTRIBUTES", "filter": "EXPONENTIAL", "byteStride": 12, "count": 3}),
+            36,
+            None,
+            json!({"componentType": 5126, "count": 3, "type": "VEC3"}),
+        );
+        let r = doc.push_meshopt(
+            extension,
+            meshopt::encoding::encode_vertex_buffer(&quat).unwrap(),
+            json!({"mode": "ATTRIBUTES", "filter": "QUATERNION", "byteStride": 8, "count": 3}),
+            24,
+            None,
+            json!({"componentType": 5122, "normalized": true, "count": 3, "type": "VEC4"}),
+        );
+        (t, r)
+    } else {
+        let t = doc.push(
+            le_bytes(&exp_decoded.concat(), u32::to_le_bytes),
+            None,
+            json!({"componentType": 5126, "count": 3, "type": "VEC3"}),
+        );
+        let r = doc.push(
+            le_bytes(&quat_decoded.concat(), i16::to_le_bytes),
+            None,
+            json!({"componentType": 5122, "normalized": true, "count": 3, "type": "VEC4"}),
+        );
+        (t, r)
+    };
+    let mut used = vec!["EXT_mesh_gpu_instancing"];
+    if compress {
+        used.push(extension);
+    }
+    let root = json!({
+        "extensionsUsed": used,
+        "extensionsRequired": used,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "extensions": {"EXT_mesh_gpu_instancing": {"attributes":
+            {"TRANSLATION": translation, "ROTATION": rotation}}}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position}}]}],
+    });
+    doc.write(dir, &format!("instanced{compress}.gltf"), root)
+}
+
+#[test]
+fn compressed_instance_transforms_decode_through_the_exponential_and_quaternion_filters() {
+    let dir = tempfile::tempdir().unwrap();
+    let transforms = |path: &Path| -> Vec<[f32; 12]> {
+        let scene = import_model(path, UpAxis::Z).unwrap_or_else(|e| panic!("loads: {e}"));
+        let mut t: Vec<(u32, [f32; 12])> = scene
+            .world
+            .query::<(hecs::Entity, &wavetrace::scene::Transform)>()
+            .iter()
+            .map(|(e, t)| (e.id(), t.0.to_cols_array()))
+            .collect();
+        t.sort_by_key(|(id, _)| *id);
+        t.into_iter().map(|(_, t)| t).collect()
+    };
+    let (packed, plain) = (
+        transforms(&instanced(dir.path(), true)),
+        transforms(&instanced(dir.path(), false)),
+    );
+    assert_eq!(packed.len(), 3);
+    assert_eq!(packed, plain);
+    // And near the transforms encoded (15-bit mantissas, 12-bit quaternion components).
+    assert!((packed[1][9] - 1.5).abs() < 1e-3 && (packed[2][11] - 0.125).abs() < 1e-3);
+}
+
+#[test]
+fn compressed_views_are_decoded_even_when_extensions_used_forgets_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let gltf = compressed(dir.path(), "KHR_meshopt_compression", 1, false);
+    let (mut doc, _) = json_and_bin(&gltf);
+    doc["extensionsUsed"] = json!(["KHR_mesh_quantization"]);
+    doc["extensionsRequired"] = json!(["KHR_mesh_quantization"]);
+    let path = dir.path().join("unlisted.gltf");
+    std::fs::write(&path, doc.to_string()).unwrap();
+    assert_eq!(meshes(&path).0, meshes(&gltf).0);
+}

@@ -239,11 +239,16 @@ fn decode(c: &Compressed, bytes: &[u8]) -> Result<Vec<u8>, String> {
     Ok(decoded)
 }
 
-/// Whether the file uses either extension.
+/// Whether the file uses either extension (listed in `extensionsUsed`, or found on a view
+/// of a file that forgot to list it).
 pub(super) fn uses_meshopt(root: &gltf::json::Root) -> bool {
     root.extensions_used
         .iter()
         .any(|e| EXTENSIONS.contains(&e.as_str()))
+        || root
+            .buffer_views
+            .iter()
+            .any(|v| extension_of(v.extensions.as_ref().map(|e| &e.others)).is_some())
 }
 
 /// The buffers that hold no data of their own and need none: those without `uri` marked as
