@@ -6,6 +6,7 @@
 //! address-space limit (`ulimit -v`, /proc/self/limits) less what the process already maps,
 //! and a cgroup v2 memory limit less its current use; resident memory and address space are
 //! compared with separate estimates. Elsewhere nothing is known and nothing is refused.
+//! [`trace_phase`] is the diagnostic that finds where the peaks are.
 
 use std::path::Path;
 
@@ -119,6 +120,25 @@ pub(crate) fn check_fits(
     }
 }
 
+/// A diagnostic for finding where memory peaks: with the environment variable
+/// `WAVETRACE_MEMTRACE` set, prints the resident memory now and its peak since the previous
+/// call (or the start), then resets that peak (Linux: `/proc/self/clear_refs`; so a later
+/// `/usr/bin/time -v` maximum covers only the last phase). `phase` names what just ended.
+pub fn trace_phase(phase: &str) {
+    if std::env::var_os("WAVETRACE_MEMTRACE").is_none() {
+        return;
+    }
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let mib = |field| kib_field(&status, field).unwrap_or(0) >> 20;
+    eprintln!(
+        "memory after {phase:>12}: {:5} MiB resident, peak since the last phase {:5} MiB",
+        mib("VmRSS:"),
+        mib("VmHWM:")
+    );
+    // Writing 5 resets the peak (VmHWM) to the current resident size.
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -163,23 +183,4 @@ mod tests {
             assert!(available().resident.is_some_and(|b| b > 0));
         }
     }
-}
-
-/// A diagnostic for finding where memory peaks: with the environment variable
-/// `WAVETRACE_MEMTRACE` set, prints the resident memory now and its peak since the previous
-/// call (or the start), then resets that peak (Linux: `/proc/self/clear_refs`; so a later
-/// `/usr/bin/time -v` maximum covers only the last phase). `phase` names what just ended.
-pub fn trace_phase(phase: &str) {
-    if std::env::var_os("WAVETRACE_MEMTRACE").is_none() {
-        return;
-    }
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let mib = |field| kib_field(&status, field).unwrap_or(0) >> 20;
-    eprintln!(
-        "memory after {phase:>12}: {:5} MiB resident, peak since the last phase {:5} MiB",
-        mib("VmRSS:"),
-        mib("VmHWM:")
-    );
-    // Writing 5 resets the peak (VmHWM) to the current resident size.
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
