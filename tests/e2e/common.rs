@@ -253,17 +253,26 @@ pub struct GltfDoc {
 impl GltfDoc {
     /// Adds `data` as a buffer view (with `byteStride` when given) and `accessor` reading it.
     pub fn push(&mut self, data: Vec<u8>, stride: Option<usize>, accessor: Value) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
+        self.align();
         let mut view =
             json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
         if let Some(stride) = stride {
             view["byteStride"] = json!(stride);
         }
-        self.views.push(view);
         self.bytes.extend(data);
-        let mut accessor = accessor;
+        self.add(view, accessor)
+    }
+
+    /// Pads buffer 0 so that the next view starts on a 4-byte boundary.
+    fn align(&mut self) {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+    }
+
+    /// Adds `view` and `accessor` reading it; returns the accessor's index.
+    fn add(&mut self, view: Value, mut accessor: Value) -> usize {
+        self.views.push(view);
         accessor["bufferView"] = json!(self.views.len() - 1);
         self.accessors.push(accessor);
         self.accessors.len() - 1
@@ -281,9 +290,7 @@ impl GltfDoc {
         stride: Option<usize>,
         accessor: Value,
     ) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
+        self.align();
         let (_, fallback_length) = self.fallback.get_or_insert((extension.to_string(), 0));
         let mut ext = fields;
         ext["buffer"] = json!(0);
@@ -296,12 +303,18 @@ impl GltfDoc {
             view["byteStride"] = json!(stride);
         }
         *fallback_length += decoded_length.next_multiple_of(4);
-        self.views.push(view);
         self.bytes.extend(compressed);
-        let mut accessor = accessor;
-        accessor["bufferView"] = json!(self.views.len() - 1);
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
+        self.add(view, accessor)
+    }
+
+    /// Adds 16-bit vertex indices.
+    pub fn indices(&mut self, indices: &[u16]) -> usize {
+        let data = indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+        self.push(
+            data,
+            None,
+            json!({"componentType": 5123, "count": indices.len(), "type": "SCALAR"}),
+        )
     }
 
     /// Adds vertex positions with the `min`/`max` glTF requires of them.

@@ -4,77 +4,12 @@
 //! fans give the same triangles as the list; spec-gloss materials convert to metal-rough; MTL as
 //! MeshLab writes it (`Tr 1`) stays opaque. Every file is written by the test.
 
+use crate::common::GltfDoc;
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use wavetrace::math::{Rgb, Vec3};
 use wavetrace::scene::load::{UpAxis, import_model};
 use wavetrace::scene::{Material, MaterialTextures, Mesh, Name};
-
-/// A glTF document with a binary buffer in `<name>.bin` beside it.
-#[derive(Default)]
-struct Doc {
-    bytes: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
-}
-
-impl Doc {
-    fn push(&mut self, data: Vec<u8>, accessor: Value) -> usize {
-        while !self.bytes.len().is_multiple_of(4) {
-            self.bytes.push(0);
-        }
-        self.views
-            .push(json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()}));
-        self.bytes.extend(data);
-        let mut accessor = accessor;
-        accessor["bufferView"] = json!(self.views.len() - 1);
-        self.accessors.push(accessor);
-        self.accessors.len() - 1
-    }
-
-    fn positions(&mut self, v: &[[f32; 3]]) -> usize {
-        let data = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
-        let lo: Vec<f32> = (0..3)
-            .map(|k| v.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min))
-            .collect();
-        let hi: Vec<f32> = (0..3)
-            .map(|k| v.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max))
-            .collect();
-        self.push(
-            data,
-            json!({"componentType": 5126, "count": v.len(), "type": "VEC3", "min": lo, "max": hi}),
-        )
-    }
-
-    fn vec2s(&mut self, v: &[[f32; 2]]) -> usize {
-        let data = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
-        self.push(
-            data,
-            json!({"componentType": 5126, "count": v.len(), "type": "VEC2"}),
-        )
-    }
-
-    fn indices(&mut self, i: &[u16]) -> usize {
-        let data = i.iter().flat_map(|x| x.to_le_bytes()).collect();
-        self.push(
-            data,
-            json!({"componentType": 5123, "count": i.len(), "type": "SCALAR"}),
-        )
-    }
-
-    /// Writes `<name>` and its buffer into `dir`; `doc` holds everything but the buffers.
-    fn write(self, dir: &Path, name: &str, mut doc: Value) -> PathBuf {
-        let bin = format!("{name}.bin");
-        std::fs::write(dir.join(&bin), &self.bytes).unwrap();
-        doc["asset"] = json!({"version": "2.0"});
-        doc["buffers"] = json!([{"byteLength": self.bytes.len(), "uri": bin}]);
-        doc["bufferViews"] = json!(self.views);
-        doc["accessors"] = json!(self.accessors);
-        let path = dir.join(name);
-        std::fs::write(&path, serde_json::to_string_pretty(&doc).unwrap()).unwrap();
-        path
-    }
-}
 
 /// The unit square in z = 0 as four vertices: (0,0), (1,0), (0,1), (1,1).
 const SQUARE: [[f32; 3]; 4] = [
@@ -146,7 +81,7 @@ fn strips_and_fans_give_the_triangles_of_the_list() {
         ("strip", 5, &[0, 1, 2, 3][..]),
         ("fan", 6, &[0, 1, 3, 2][..]),
     ] {
-        let mut doc = Doc::default();
+        let mut doc = GltfDoc::default();
         let p = doc.positions(&SQUARE);
         let i = doc.indices(indices);
         let path = doc.write(
@@ -179,7 +114,7 @@ fn strips_and_fans_give_the_triangles_of_the_list() {
 #[test]
 fn a_lines_primitive_among_triangles_is_skipped_with_one_warning() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE);
     let i = doc.indices(&[0, 1, 3, 0, 3, 2]);
     let lines = doc.indices(&[0, 1, 1, 3]);
@@ -203,7 +138,7 @@ fn a_lines_primitive_among_triangles_is_skipped_with_one_warning() {
     );
 
     // Only lines: nothing renderable is left, which is an error.
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE);
     let path = doc.write(
         dir.path(),
@@ -223,9 +158,9 @@ fn a_lines_primitive_among_triangles_is_skipped_with_one_warning() {
 #[test]
 fn valid_files_the_strict_reader_refused_load() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE[..3]);
-    let pressure = doc.vec2s(&[[0.0, 0.0]; 3]);
+    let pressure = doc.floats(&[[0.0, 0.0]; 3], "VEC2");
     let mut gltf = one_mesh(json!([{"attributes": {"POSITION": p, "_PRESSURE": pressure}}]));
     // A second scene without nodes; an animation whose channel has no node
     // (KHR_animation_pointer).
@@ -251,7 +186,7 @@ fn valid_files_the_strict_reader_refused_load() {
     assert_eq!(warnings_with(&scene, "animations are ignored"), 1);
 
     // The only scene has no nodes: an empty model, not an error.
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     doc.positions(&SQUARE);
     let path = doc.write(dir.path(), "no-nodes.gltf", json!({"scenes": [{}]}));
     let scene = load(&path);
@@ -260,9 +195,9 @@ fn valid_files_the_strict_reader_refused_load() {
 
 /// A textured triangle whose base colour image is `uri` (with `extra` merged into the texture).
 fn textured(dir: &Path, name: &str, images: Value, texture: Value, required: &[&str]) -> PathBuf {
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE[..3]);
-    let uv = doc.vec2s(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+    let uv = doc.floats(&[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]], "VEC2");
     let mut gltf = one_mesh(json!([{"attributes": {"POSITION": p, "TEXCOORD_0": uv},
         "material": 0}]));
     gltf["materials"] = json!([{"name": "painted",
@@ -388,7 +323,7 @@ fn material_of(scene: &wavetrace::Scene, name: &str) -> Material {
 #[test]
 fn spec_gloss_converts_and_required_fallback_extensions_load() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE[..3]);
     let mut gltf = json!({
         "scenes": [{"nodes": [0, 1, 2, 3]}],
@@ -492,7 +427,7 @@ fn spec_gloss_converts_and_required_fallback_extensions_load() {
 #[test]
 fn each_ignored_feature_is_named_once_per_file() {
     let dir = tempfile::tempdir().unwrap();
-    let mut doc = Doc::default();
+    let mut doc = GltfDoc::default();
     let p = doc.positions(&SQUARE[..3]);
     let colours = doc.positions(&[[1.0, 0.0, 0.0]; 3]);
     let mut primitives = Vec::new();
