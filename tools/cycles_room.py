@@ -5,9 +5,9 @@ developer tool, not part of CI). Run it with Blender's Python module:
     cargo build --release --example equal_time --example image_error
     PY=/tmp/bpyenv/venv/bin/python
     $PY tools/cycles_room.py build OUT            # OUT/room.blend and its export OUT/room.glb
-    $PY tools/cycles_room.py render OUT/room.blend OUT/ref-cycles.exr --spp 2048 --seed 7
+    $PY tools/cycles_room.py render OUT/room.blend OUT/ref-cycles.exr --spp 512 --seed 7
     target/release/wavetrace render OUT/room.glb -o OUT/ref-wt.exr --width 256 --height 256 \
-        --spp 4096 --seed 7
+        --spp 2048 --seed 7
     $PY tools/cycles_room.py compare OUT/ref-wt.exr OUT/ref-cycles.exr   # the references' means
     $PY tools/cycles_room.py table OUT --wt-ref OUT/ref-wt.exr --cycles-ref OUT/ref-cycles.exr \
         [--budgets 8 32] [--repeats 3]

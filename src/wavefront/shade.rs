@@ -343,13 +343,17 @@ fn shade_one<const THROUGH: bool>(
         0.0
     };
 
-    // --- Russian roulette: survive with probability min(max throughput, 0.95), reweighted.
-    // The throughput without the radiance compression of refractions (as pbrt and Mitsuba
-    // play it): inside glass it is 1/eta^2 = 0.44 of what it will be once the path leaves,
-    // and killing 56% of the paths there multiplied the weight of every caustic path that
-    // survived by 2.25.
+    // --- Russian roulette: survive with probability min(sqrt(max throughput), 0.95),
+    // reweighted. The throughput without the radiance compression of refractions (as pbrt
+    // and Mitsuba play it): inside glass it is 1/eta^2 = 0.44 of what it will be once the
+    // path leaves, and killing 56% of the paths there multiplied the weight of every caustic
+    // path that survived by 2.25. The square root (as Cycles) keeps more paths at the first
+    // bounces, whose survivors would otherwise carry weights of 1/0.8 and more each: on the
+    // room it lowers the relative MSE per sample by 16% for 15% more rays, and by 10% at
+    // equal time (docs/sampling.md, section 2).
     if bounce >= params.roulette_min_bounces {
-        let survival = (max_component(*path.throughput) / *path.radiance_scale).min(MAX_SURVIVAL);
+        let kept = max_component(*path.throughput) / *path.radiance_scale;
+        let survival = kept.sqrt().min(MAX_SURVIVAL);
         if params.sampler.uniform(key, bounce, dim::ROULETTE) >= survival {
             return false;
         }
