@@ -20,6 +20,7 @@ import os
 import tempfile
 
 import bpy
+from blender_common import empty_scene, render_mean, report, unbiased_cycles
 
 COLOUR = (0.8, 0.5, 0.2)
 DISTANCE = 1.0
@@ -36,14 +37,7 @@ def main():
     density = max(sigma)
     node_colour = [1.0 - s / density for s in sigma]
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    world = bpy.data.worlds.new("sky")
-    world.use_nodes = True
-    background = world.node_tree.nodes["Background"]
-    background.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    background.inputs["Strength"].default_value = 1.0
-    scene.world = world
+    scene = empty_scene(1.0)
 
     bpy.ops.mesh.primitive_cube_add(size=SIDE, location=(0, 0, 0))
     cube = bpy.context.active_object
@@ -68,33 +62,8 @@ def main():
     camera.data.ortho_scale = 0.2
     scene.camera = camera
 
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = args.samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    for bounces in ("max_bounces", "transmission_bounces", "glossy_bounces"):
-        setattr(scene.cycles, bounces, 64)
-    scene.cycles.transparent_max_bounces = 64
-    scene.cycles.sample_clamp_direct = 0.0
-    scene.cycles.sample_clamp_indirect = 0.0
-    scene.cycles.filter_glossy = 0.0
-    scene.cycles.caustics_reflective = True
-    scene.cycles.caustics_refractive = True
-    scene.view_settings.view_transform = "Standard"
-    scene.render.resolution_x = 8
-    scene.render.resolution_y = 8
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    path = os.path.join(args.out, "cycles.exr")
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-    image = bpy.data.images.load(path)
-    pixels = list(image.pixels)
-    n = len(pixels) // 4
-    mean = [sum(pixels[4 * i + c] for i in range(n)) / n for c in range(3)]
+    unbiased_cycles(scene, args.samples)
+    n, mean = render_mean(scene, os.path.join(args.out, "cycles.exr"))
     f = ((IOR - 1) / (IOR + 1)) ** 2
     expected = []
     for s in sigma:
@@ -106,9 +75,7 @@ def main():
         "closed form " + " ".join(f"{e:.5f}" for e in expected),
         "ratio       " + " ".join(f"{m / e:.4f}" for m, e in zip(mean, expected)),
     ]
-    with open(os.path.join(args.out, "results.txt"), "w") as out:
-        out.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    report(args.out, lines)
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ import sys
 import tempfile
 
 import bpy
+from blender_common import empty_scene
 
 ALBEDO = 0.8
 HEIGHT = 2.0
@@ -39,18 +40,10 @@ SUN_STRENGTH = 3.0
 SPOT_SIZE_DEG = 60.0
 
 
-def reset():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    world = bpy.data.worlds.new("black")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    scene.world = world
-    return scene
 
 
 def build(kind, size, blend=0.15):
-    scene = reset()
+    scene = empty_scene()
     # Before the export too: the exported camera's yfov follows the render's aspect ratio.
     scene.render.resolution_x = size
     scene.render.resolution_y = size

@@ -18,6 +18,7 @@ import os
 import tempfile
 
 import bpy
+from blender_common import empty_scene, render_mean, report, unbiased_cycles
 
 ROUGHNESS = 0.5
 IOR = 1.5
@@ -31,12 +32,7 @@ def main():
     parser.add_argument("--out", default=tempfile.mkdtemp(prefix="rough-glass-"))
     args = parser.parse_args()
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    world = bpy.data.worlds.new("black")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    scene.world = world
+    scene = empty_scene(0.0)
 
     bpy.ops.mesh.primitive_plane_add(size=20.0, location=(0, 0, 0))
     plane = bpy.context.active_object
@@ -61,28 +57,8 @@ def main():
     camera.data.ortho_scale = 0.002
     scene.camera = camera
 
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = args.samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.sample_clamp_direct = 0.0
-    scene.cycles.sample_clamp_indirect = 0.0
-    scene.cycles.filter_glossy = 0.0
-    scene.view_settings.view_transform = "Standard"
-    scene.render.resolution_x = 8
-    scene.render.resolution_y = 8
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    path = os.path.join(args.out, "cycles.exr")
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-    image = bpy.data.images.load(path)
-    pixels = list(image.pixels)
-    n = len(pixels) // 4
-    mean = [sum(pixels[4 * i + c] for i in range(n)) / n for c in range(3)]
+    unbiased_cycles(scene, args.samples)
+    n, mean = render_mean(scene, os.path.join(args.out, "cycles.exr"))
     alpha = ROUGHNESS**2
     f0 = ((IOR - 1) / (IOR + 1)) ** 2
     irradiance = POWER / (4 * math.pi) / DEPTH**2
@@ -93,9 +69,7 @@ def main():
         f"closed form {expected:.4f}",
         "ratio       " + " ".join(f"{m / expected:.4f}" for m in mean),
     ]
-    with open(os.path.join(args.out, "results.txt"), "w") as out:
-        out.write("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    report(args.out, lines)
 
 
 if __name__ == "__main__":

@@ -53,6 +53,7 @@ import tempfile
 import time
 
 import bpy
+from blender_common import empty_scene
 
 SIZE = 256
 EMISSION = 20.0
@@ -118,12 +119,7 @@ def sphere(name, center, radius, mat):
 
 
 def build_scene():
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = bpy.context.scene
-    world = bpy.data.worlds.new("black")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    scene.world = world
+    scene = empty_scene()
     scene.render.resolution_x = SIZE
     scene.render.resolution_y = SIZE
     scene.render.resolution_percentage = 100
