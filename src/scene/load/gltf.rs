@@ -92,6 +92,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     };
     // The BIN chunk was copied out: the file's bytes are not kept while the buffers load.
     drop(bytes);
+    crate::memory::trace_phase("read");
     for ext in &json.extensions_required {
         if let Some(message) = gltf_geometry::compression_message(ext) {
             return Err(Error::input(path, None, message));
@@ -153,6 +154,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         document
     };
     gltf_check::check_ranges(path, &document)?;
+    crate::memory::trace_phase("buffers");
     gltf_memory::check_meshes(path, &document)?;
 
     gltf_fix::survey(path, &document, &mut warnings);
@@ -394,6 +396,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             stack.push((child, world_from_node, depth + 1));
         }
     }
+    crate::memory::trace_phase("meshes");
     if lines_skipped > 0 {
         warnings.push(format!(
             "{}: points and lines are not rendered ({lines_skipped} primitive{} skipped)",
