@@ -86,6 +86,20 @@ pub(super) fn check_buffers(
 /// once per read: a mesh is read once however many nodes draw it, and once more per node that
 /// deforms it (skin or morph weights).
 pub(super) fn check_meshes(path: &Path, document: &gltf::Document) -> Result<()> {
+    let (triangles, bytes) = meshes_size(document);
+    check_fits(
+        path,
+        &format!("reading its meshes ({triangles} triangles)"),
+        Needed {
+            resident: bytes,
+            address_space: bytes,
+        },
+        available(),
+    )
+}
+
+/// Triangles and bytes of reading every mesh as often as the loader reads it.
+fn meshes_size(document: &gltf::Document) -> (u64, u64) {
     let mut reads = vec![0u64; document.meshes().len()];
     for node in document.nodes() {
         if let Some(mesh) = node.mesh() {
@@ -108,15 +122,7 @@ pub(super) fn check_meshes(path: &Path, document: &gltf::Document) -> Result<()>
             bytes = bytes.saturating_add(b.saturating_mul(mesh_reads));
         }
     }
-    check_fits(
-        path,
-        &format!("reading its meshes ({triangles} triangles)"),
-        Needed {
-            resident: bytes,
-            address_space: bytes,
-        },
-        available(),
-    )
+    (triangles, bytes)
 }
 
 /// Triangles and bytes of one read of a primitive (none for points and lines).
@@ -155,4 +161,57 @@ fn primitive_size(primitive: &gltf::Primitive) -> (u64, u64) {
         .saturating_add(triangles.saturating_mul(TRIANGLE_BYTES))
         .saturating_add(own_list);
     (triangles, bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A document of one mesh (positions and normals of 10 vertices, a strip of 12 indices)
+    /// drawn by three nodes, the last with morph weights.
+    fn document() -> gltf::Document {
+        let json = r#"{
+            "asset": {"version": "2.0"},
+            "buffers": [{"byteLength": 288}],
+            "bufferViews": [{"buffer": 0, "byteLength": 240}, {"buffer": 0, "byteOffset": 240, "byteLength": 48}],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 10, "type": "VEC3", "min": [0,0,0], "max": [1,1,1]},
+                {"bufferView": 0, "componentType": 5126, "count": 10, "type": "VEC3"},
+                {"bufferView": 1, "componentType": 5125, "count": 12, "type": "SCALAR"}
+            ],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "mode": 5}]}],
+            "nodes": [{"mesh": 0}, {"mesh": 0}, {"mesh": 0, "weights": [0.5]}],
+            "scenes": [{"nodes": [0, 1, 2]}]
+        }"#;
+        gltf::Gltf::from_slice(json.as_bytes()).unwrap().document
+    }
+
+    #[test]
+    fn a_primitive_counts_its_vertices_and_triangles_at_the_loaders_sizes() {
+        let document = document();
+        let primitive = document
+            .meshes()
+            .next()
+            .unwrap()
+            .primitives()
+            .next()
+            .unwrap();
+        // 10 triangles from a strip of 12; 24 bytes per vertex, 24 per triangle, 4 per index.
+        assert_eq!(primitive_size(&primitive), (10, 10 * 24 + 10 * 24 + 12 * 4));
+    }
+
+    #[test]
+    fn a_shared_mesh_is_counted_once_and_once_more_per_deforming_node() {
+        let document = document();
+        let primitive = document
+            .meshes()
+            .next()
+            .unwrap()
+            .primitives()
+            .next()
+            .unwrap();
+        let (triangles, bytes) = primitive_size(&primitive);
+        // Two reads: one for the two plain nodes, one for the node with weights.
+        assert_eq!(meshes_size(&document), (2 * triangles, 2 * bytes));
+    }
 }
