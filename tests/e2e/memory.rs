@@ -4,6 +4,7 @@
 
 use crate::common::{GltfDoc, check_failure};
 use serde_json::json;
+use std::path::Path;
 use std::process::Command;
 
 /// Side of the vertex grid of the one mesh's data: 2 x 223^2 = 99,458 triangles.
@@ -104,4 +105,95 @@ fn an_obj_too_large_to_parse_is_refused_with_a_clear_error() {
         panic!("{e}");
     }
     assert!(!output.exists(), "no image is written");
+}
+
+/// Runs `wavetrace render` on `scene` under an address-space limit of `limit_kib` (`ulimit
+/// -v`), writing to `output`.
+fn render_limited(limit_kib: u64, scene: &Path, output: &Path) -> std::process::Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!("ulimit -v {limit_kib} && exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_wavetrace"))
+        .args([
+            "render", "--quiet", "--spp", "1", "--width", "8", "--height", "8", "-o",
+        ])
+        .arg(output)
+        .arg(scene)
+        .output()
+        .unwrap()
+}
+
+/// A glTF whose meshes would not fit once read from their accessors is refused before they
+/// are read: 100 meshes of one million triangles each over 4 MB of data (one accessor of
+/// byte indices, distinct meshes, so each is read), 2.4 GB to read, under `ulimit -v` 1 GiB.
+/// The world alone (1.2 GB of triangles) used to end in an allocation abort.
+#[test]
+fn a_gltf_too_large_to_read_its_meshes_is_refused_with_a_clear_error() {
+    const TRIANGLES: usize = 1_000_000;
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = GltfDoc::default();
+    let position = doc.positions(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+    let indices: Vec<u8> = [0u8, 1, 2].repeat(TRIANGLES);
+    let index = doc.push(
+        indices,
+        None,
+        json!({"componentType": 5121, "count": 3 * TRIANGLES, "type": "SCALAR"}),
+    );
+    let primitive = json!({"attributes": {"POSITION": position}, "indices": index});
+    let path = doc.write(
+        dir.path(),
+        "wide.gltf",
+        json!({
+            "scenes": [{"nodes": (0..MESHES).collect::<Vec<_>>()}],
+            "nodes": (0..MESHES).map(|m| json!({"mesh": m})).collect::<Vec<_>>(),
+            "meshes": (0..MESHES).map(|_| json!({"primitives": [primitive]})).collect::<Vec<_>>(),
+        }),
+    );
+    let output = dir.path().join("wide.png");
+    let out = render_limited(1 << 20, &path, &output);
+    let expected = [
+        "wide.gltf",
+        "does not fit in memory",
+        "reading its meshes (100000000 triangles)",
+        "ulimit -v",
+    ];
+    if let Err(e) = check_failure(&out, 1, &expected) {
+        panic!("{e}");
+    }
+    assert!(!output.exists(), "no image is written");
+}
+
+/// A glTF whose buffers, or a GLB whose bytes, would not fit are refused before they are
+/// read: a 3 GiB buffer file and a 3 GiB `.glb` (sparse files: nothing is written to disk)
+/// under `ulimit -v` 1 GiB, where reading them used to end in an allocation abort.
+#[test]
+fn a_gltf_with_buffers_too_large_to_read_is_refused_with_a_clear_error() {
+    const SIZE: u64 = 3 << 30;
+    let dir = tempfile::tempdir().unwrap();
+    let sparse = |name: &str| {
+        let file = std::fs::File::create(dir.path().join(name)).unwrap();
+        file.set_len(SIZE).unwrap();
+    };
+    sparse("big.bin");
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": SIZE, "uri": "big.bin"}],
+        "scenes": [{"nodes": []}],
+    });
+    let gltf = dir.path().join("big.gltf");
+    std::fs::write(&gltf, doc.to_string()).unwrap();
+    sparse("big.glb");
+    let glb = dir.path().join("big.glb");
+    for (scene, what) in [
+        (&gltf, "loading its buffers (3221.2 MB)"),
+        (&glb, "reading the file (3221.2 MB)"),
+    ] {
+        let output = dir.path().join("big.png");
+        let out = render_limited(1 << 20, scene, &output);
+        let name = scene.file_name().unwrap().to_str().unwrap();
+        if let Err(e) = check_failure(&out, 1, &[name, "does not fit in memory", what]) {
+            panic!("{e}");
+        }
+        assert!(!output.exists(), "no image is written");
+    }
 }

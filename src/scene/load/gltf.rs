@@ -12,7 +12,7 @@
 
 use super::{
     Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_deform, gltf_fix, gltf_geometry,
-    gltf_meshopt,
+    gltf_memory, gltf_meshopt,
 };
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
@@ -69,6 +69,9 @@ type TextureTable = HashMap<(usize, Encoding), Arc<Texture>>;
 
 /// Loads a glTF file into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
+    // Running out of memory while loading is refused with an error, not an allocation abort:
+    // the file, its buffers and its meshes are each checked before they are read.
+    gltf_memory::check_file(path)?;
     let bytes = std::fs::read(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         action: "cannot read",
@@ -87,6 +90,9 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             None,
         )
     };
+    // The BIN chunk was copied out: the file's bytes are not kept while the buffers load.
+    drop(bytes);
+    crate::memory::trace_phase("read");
     for ext in &json.extensions_required {
         if let Some(message) = gltf_geometry::compression_message(ext) {
             return Err(Error::input(path, None, message));
@@ -136,6 +142,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     };
     let document = gltf::Document::from_json(json).map_err(gltf_error)?;
     let base = path.parent().unwrap_or(Path::new("."));
+    gltf_memory::check_buffers(path, &document, base, &placeholders)?;
     let mut buffers = gltf_check::import_buffers(path, &document, base, blob, &placeholders)?;
     let document = if meshopt {
         // Compressed views become views of decoded buffers; the document is made again from
@@ -147,6 +154,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         document
     };
     gltf_check::check_ranges(path, &document)?;
+    crate::memory::trace_phase("buffers");
+    gltf_memory::check_meshes(path, &document)?;
 
     gltf_fix::survey(path, &document, &mut warnings);
     let textures = import_textures(&document, base, &buffers, path, &mut warnings);
@@ -387,6 +396,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             stack.push((child, world_from_node, depth + 1));
         }
     }
+    crate::memory::trace_phase("meshes");
     if lines_skipped > 0 {
         warnings.push(format!(
             "{}: points and lines are not rendered ({lines_skipped} primitive{} skipped)",

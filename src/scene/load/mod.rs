@@ -11,6 +11,7 @@ mod gltf_check;
 mod gltf_deform;
 mod gltf_fix;
 mod gltf_geometry;
+mod gltf_memory;
 mod gltf_meshopt;
 mod obj;
 mod obj_check;
