@@ -55,17 +55,7 @@ fn a_scene_too_large_for_the_address_space_is_refused_with_a_clear_error() {
     let output = dir.path().join("many.png");
     // 2 GiB of address space: the world (about 0.2 GB of meshes) loads, its render scene
     // cannot be built.
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg("ulimit -v 2097152 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_wavetrace"))
-        .args([
-            "render", "--quiet", "--spp", "1", "--width", "8", "--height", "8", "-o",
-        ])
-        .arg(&output)
-        .arg(&path)
-        .output()
-        .unwrap();
+    let out = render_limited(2 << 20, &path, &output);
     if let Err(e) = check_failure(&out, 1, &["many.gltf", "does not fit in memory", "GiB"]) {
         panic!("{e}");
     }
@@ -85,17 +75,7 @@ fn an_obj_too_large_to_parse_is_refused_with_a_clear_error() {
     text.push_str(&"f 1 2 3\n".repeat(2_000_000));
     std::fs::write(&path, text).unwrap();
     let output = dir.path().join("many-faces.png");
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg("ulimit -v 409600 && exec \"$0\" \"$@\"")
-        .arg(env!("CARGO_BIN_EXE_wavetrace"))
-        .args([
-            "render", "--quiet", "--spp", "1", "--width", "8", "--height", "8", "-o",
-        ])
-        .arg(&output)
-        .arg(&path)
-        .output()
-        .unwrap();
+    let out = render_limited(400 << 10, &path, &output);
     let expected = [
         "many-faces.obj",
         "does not fit in memory",
