@@ -241,13 +241,9 @@ fn two_level_structure_renders_as_the_flattened_scene() {
     assert!(mean > 0.01 && differing > 0.1, "{mean} {differing}");
 }
 
-#[test]
-fn a_thousand_instances_render_as_their_flattened_twin() {
-    // 1,000 nodes (a 10 x 10 x 10 grid, each turned, some mirrored and squashed) sharing one
-    // torus of 192 triangles: the 1,000-instance case at a size the flat BVH holds.
-    let dir = tempfile::tempdir().unwrap();
-    let mut doc = GltfDoc::default();
-    let (positions, normals, indices) = torus(12, 8);
+/// Adds a torus of `major` x `minor` quads to `doc`: its position, normal and index accessors.
+fn push_torus(doc: &mut GltfDoc, major: u32, minor: u32) -> (usize, usize, usize) {
+    let (positions, normals, indices) = torus(major, minor);
     let position = doc.positions(&positions);
     let normal = doc.floats(&normals, "VEC3");
     let index = doc.push(
@@ -255,6 +251,16 @@ fn a_thousand_instances_render_as_their_flattened_twin() {
         None,
         json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
     );
+    (position, normal, index)
+}
+
+#[test]
+fn a_thousand_instances_render_as_their_flattened_twin() {
+    // 1,000 nodes (a 10 x 10 x 10 grid, each turned, some mirrored and squashed) sharing one
+    // torus of 192 triangles: the 1,000-instance case at a size the flat BVH holds.
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = GltfDoc::default();
+    let (position, normal, index) = push_torus(&mut doc, 12, 8);
     let mut nodes = Vec::new();
     for k in 0..1000 {
         let (x, y, z) = (k % 10, k / 10 % 10, k / 100);
@@ -341,14 +347,7 @@ fn three_placements(dir: &Path, name: &str, files: [&str; 3]) -> PathBuf {
 fn a_model_placed_three_times_is_loaded_once_and_renders_as_three_copies() {
     let dir = tempfile::tempdir().unwrap();
     let mut doc = GltfDoc::default();
-    let (positions, normals, indices) = torus(48, 24);
-    let position = doc.positions(&positions);
-    let normal = doc.floats(&normals, "VEC3");
-    let index = doc.push(
-        indices.iter().flat_map(|i| i.to_le_bytes()).collect(),
-        None,
-        json!({"componentType": 5125, "count": indices.len(), "type": "SCALAR"}),
-    );
+    let (position, normal, index) = push_torus(&mut doc, 48, 24);
     // An application-specific attribute: ignored with one warning per loaded file.
     doc.write(
         dir.path(),
@@ -382,7 +381,7 @@ fn a_model_placed_three_times_is_loaded_once_and_renders_as_three_copies() {
         .collect();
     assert_eq!(meshes.len(), 3);
     assert!(meshes.iter().all(|m| Arc::ptr_eq(m, &meshes[0])));
-    assert_eq!(meshes[0].indices.len(), indices.len() / 3);
+    assert_eq!(meshes[0].indices.len(), torus(48, 24).2.len() / 3);
     let about = |warnings: &[String]| {
         warnings
             .iter()

@@ -186,16 +186,20 @@ mod tests {
         gltf::Gltf::from_slice(json.as_bytes()).unwrap().document
     }
 
-    #[test]
-    fn a_primitive_counts_its_vertices_and_triangles_at_the_loaders_sizes() {
-        let document = document();
-        let primitive = document
+    fn first_primitive(document: &gltf::Document) -> gltf::Primitive<'_> {
+        document
             .meshes()
             .next()
             .unwrap()
             .primitives()
             .next()
-            .unwrap();
+            .unwrap()
+    }
+
+    #[test]
+    fn a_primitive_counts_its_vertices_and_triangles_at_the_loaders_sizes() {
+        let document = document();
+        let primitive = first_primitive(&document);
         // 10 triangles from a strip of 12; 24 bytes per vertex, 24 per triangle, 4 per index.
         assert_eq!(primitive_size(&primitive), (10, 10 * 24 + 10 * 24 + 12 * 4));
     }
@@ -203,13 +207,7 @@ mod tests {
     #[test]
     fn a_shared_mesh_is_counted_once_and_once_more_per_deforming_node() {
         let document = document();
-        let primitive = document
-            .meshes()
-            .next()
-            .unwrap()
-            .primitives()
-            .next()
-            .unwrap();
+        let primitive = first_primitive(&document);
         let (triangles, bytes) = primitive_size(&primitive);
         // Two reads: one for the two plain nodes, one for the node with weights.
         assert_eq!(meshes_size(&document), (2 * triangles, 2 * bytes));
