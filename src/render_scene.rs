@@ -197,25 +197,28 @@ impl RenderScene {
         self.instances.as_ref().expect("an instanced slot")
     }
 
+    /// A per-slot attribute: from the flat part's column `flat`, or for a slot past it, from
+    /// the instance that holds it.
+    #[inline(always)]
+    fn per_slot<T: Copy>(&self, slot: usize, flat: &[T], instanced: fn(&Instances, u32) -> T) -> T {
+        if slot < self.leaf_prims.len() {
+            flat[slot]
+        } else {
+            instanced(self.instanced(slot), slot as u32)
+        }
+    }
+
     /// Texture coordinates of the vertices of the primitive in slot `slot`.
     #[inline(always)]
     pub(crate) fn vertex_uvs(&self, slot: usize) -> [Vec2; 3] {
-        if slot < self.leaf_prims.len() {
-            self.vertex_uvs[slot]
-        } else {
-            self.instanced(slot).vertex_uvs(slot as u32)
-        }
+        self.per_slot(slot, &self.vertex_uvs, Instances::vertex_uvs)
     }
 
     /// Linear RGBA vertex colours of the primitive in slot `slot` (white without); only for
     /// scenes with vertex colours ([`Self::has_vertex_colors`]).
     #[inline(always)]
     pub(crate) fn vertex_colors(&self, slot: usize) -> [Vec4; 3] {
-        if slot < self.leaf_prims.len() {
-            self.vertex_colors[slot]
-        } else {
-            self.instanced(slot).vertex_colors(slot as u32)
-        }
+        self.per_slot(slot, &self.vertex_colors, Instances::vertex_colors)
     }
 
     /// Whether some mesh has vertex colours.
@@ -228,21 +231,13 @@ impl RenderScene {
     /// with normal maps.
     #[inline(always)]
     pub(crate) fn vertex_tangents(&self, slot: usize) -> [Vec4; 3] {
-        if slot < self.leaf_prims.len() {
-            self.vertex_tangents[slot]
-        } else {
-            self.instanced(slot).vertex_tangents(slot as u32)
-        }
+        self.per_slot(slot, &self.vertex_tangents, Instances::vertex_tangents)
     }
 
     /// Material index of the primitive in slot `slot`.
     #[inline(always)]
     pub(crate) fn material_of(&self, slot: usize) -> u32 {
-        if slot < self.leaf_prims.len() {
-            self.material[slot]
-        } else {
-            self.instanced(slot).material(slot as u32)
-        }
+        self.per_slot(slot, &self.material, Instances::material)
     }
 
     /// Light index of the primitive in slot `slot`, or [`NO_EMITTER`] (always for instanced
