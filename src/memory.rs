@@ -92,7 +92,20 @@ pub(crate) fn check_fits(
     needed: Needed,
     available: Available,
 ) -> crate::Result<()> {
-    let short = [
+    match shortfall(what, needed, available) {
+        Some(why) => Err(crate::Error::input(
+            path,
+            None,
+            format!("{why}; use a smaller model or fewer copies of it"),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Why something (`what` says what) cannot have the memory it needs, naming the estimate
+/// and the limit it exceeds; `None` when it fits (or nothing is known).
+pub(crate) fn shortfall(what: &str, needed: Needed, available: Available) -> Option<String> {
+    let (need, have, limit) = [
         (needed.resident, available.resident, "free memory"),
         (
             needed.address_space,
@@ -104,20 +117,13 @@ pub(crate) fn check_fits(
     .find_map(|(need, have, limit)| {
         have.filter(|&have| need > have)
             .map(|have| (need, have, limit))
-    });
-    match short {
-        Some((need, have, limit)) => Err(crate::Error::input(
-            path,
-            None,
-            format!(
-                "the scene does not fit in memory: {what} needs about {:.1} GiB, and {limit} \
-                 leaves {:.1} GiB; use a smaller model or fewer copies of it",
-                gib(need),
-                gib(have)
-            ),
-        )),
-        None => Ok(()),
-    }
+    })?;
+    Some(format!(
+        "the scene does not fit in memory: {what} needs about {:.1} GiB, and {limit} leaves \
+         {:.1} GiB",
+        gib(need),
+        gib(have)
+    ))
 }
 
 /// A diagnostic for finding where memory peaks: with the environment variable

@@ -177,3 +177,38 @@ fn a_gltf_with_buffers_too_large_to_read_is_refused_with_a_clear_error() {
         assert!(!output.exists(), "no image is written");
     }
 }
+
+/// A texture whose texels would not fit is left out with one warning, and the rest renders:
+/// an 8192 x 8192 grey PNG (64 MB decoded, 256 KB on disk) becomes 1 GiB of linear texels,
+/// more than `ulimit -v` 1 GiB leaves; the OBJ's material renders with its `Kd`.
+#[test]
+fn a_texture_too_large_to_decode_is_skipped_with_a_warning() {
+    const SIDE: u32 = 8192;
+    let dir = tempfile::tempdir().unwrap();
+    let grey = image::GrayImage::new(SIDE, SIDE);
+    grey.save(dir.path().join("huge.png")).unwrap();
+    std::fs::write(
+        dir.path().join("huge.mtl"),
+        "newmtl wall\nKd 0.5 0.5 0.5\nmap_Kd huge.png\n",
+    )
+    .unwrap();
+    let path = dir.path().join("huge.obj");
+    std::fs::write(
+        &path,
+        "mtllib huge.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl wall\nf 1 2 3\n",
+    )
+    .unwrap();
+    let output = dir.path().join("huge-texture.png");
+    let out = render_limited(1 << 20, &path, &output);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    for expected in [
+        "huge.png",
+        "does not fit in memory",
+        "decoding its 8192 x 8192 texels",
+        "using Kd alone",
+    ] {
+        assert!(stderr.contains(expected), "no '{expected}' in: {stderr}");
+    }
+    assert!(output.exists(), "the image is written");
+}

@@ -548,7 +548,7 @@ fn decode_image(
     if bytes.starts_with(KTX2_MAGIC) {
         return Err("KTX2 (KHR_texture_basisu) images are not supported".to_string());
     }
-    image::load_from_memory(&bytes).map_err(|e| format!("cannot decode it: {e}"))
+    super::image_decode::decode_image_bytes(&bytes)
 }
 
 /// A decoded image as a texture of the given encoding.

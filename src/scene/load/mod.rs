@@ -13,6 +13,7 @@ mod gltf_fix;
 mod gltf_geometry;
 mod gltf_memory;
 mod gltf_meshopt;
+mod image_decode;
 mod obj;
 mod obj_check;
 mod place;

@@ -502,7 +502,8 @@ fn texture_file_name(arguments: &str) -> (&str, Vec<&str>) {
 
 /// Reads an image file as an sRGB colour texture (repeat, bilinear).
 pub(super) fn load_texture(path: &Path) -> std::result::Result<Texture, String> {
-    let image = image::open(path).map_err(|e| e.to_string())?.to_rgb8();
+    let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+    let image = super::image_decode::decode_image_bytes(&bytes)?.to_rgb8();
     Texture::from_srgb8(image.width(), image.height(), 3, image.as_raw())
         .ok_or_else(|| "the image is empty".to_string())
 }
