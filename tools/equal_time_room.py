@@ -8,7 +8,10 @@ machine's load falls on every arm alike. Prints one line per run, then the media
         [--threshold 0.02] [--no-mitsuba]
 
 Needs `cargo build --release --example equal_time` (or the dev profile with --profile debug)
-and, for Mitsuba, `python3 -m pip install mitsuba`.
+and, for Mitsuba, `python3 -m pip install mitsuba`. Mitsuba's fastest CPU variant,
+`llvm_ad_rgb` (the default here), needs LLVM's shared library at version 17 or later (15
+and 16 fail to select `fminimum`): on Debian 12 `apt-get install libllvm19` and
+`DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM-19.so`.
 """
 
 import argparse
@@ -30,10 +33,10 @@ def wavetrace(example, reference, budget, seed, extra):
     return {"spp": spp, "s": seconds, "rmse": rmse, "rel": rel, "top": top}
 
 
-def mitsuba(reference, spp, seed, size, out):
+def mitsuba(reference, spp, seed, size, out, variant):
     r = subprocess.run([sys.executable, "tools/mitsuba_room.py", "render", "scenes/room.toml",
                         out, "--spp", str(spp), "--seed", str(seed), "--size", str(size),
-                        "--filter", "box", "--variant", "scalar_rgb"],
+                        "--filter", "box", "--variant", variant],
                        capture_output=True, text=True, check=True).stdout
     seconds = float(re.search(r"([\d.]+) s$", r.strip()).group(1))
     e = subprocess.run([sys.executable, "tools/mitsuba_room.py", "error", reference, out,
@@ -53,15 +56,18 @@ def main():
     p.add_argument("--profile", default="release")
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--no-mitsuba", action="store_true")
+    p.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
+    p.add_argument("--arms", nargs="+", default=["independent", "sobol", "adaptive"],
+                   help="wavetrace arms to run: independent, sobol, adaptive")
     p.add_argument("--scratch", default="target/mitsuba_equal_time.exr")
     args = p.parse_args()
     example = f"target/{args.profile}/examples/equal_time"
     arms = {
         "independent": ["--sampler", "independent"],
         "sobol": ["--sampler", "sobol"],
-        f"adaptive {args.threshold}": ["--sampler", "independent", "--noise-threshold",
-                                       str(args.threshold)],
+        "adaptive": ["--sampler", "independent", "--noise-threshold", str(args.threshold)],
     }
+    arms = {name: arms[name] for name in args.arms}
     results = {}
     mitsuba_rate = None  # samples per pixel per second, from the last Mitsuba run
     for repeat in range(args.repeats):
@@ -73,12 +79,14 @@ def main():
                 print(f"{budget:g} s {name} seed {seed}: {r}", flush=True)
             if not args.no_mitsuba:
                 if mitsuba_rate is None:
-                    probe = mitsuba(args.reference, 2, seed, args.size, args.scratch)
+                    probe = mitsuba(args.reference, 2, seed, args.size, args.scratch,
+                                    args.mitsuba_variant)
                     mitsuba_rate = 2 / probe["s"]
                 spp = max(1, int(budget * mitsuba_rate))
-                r = mitsuba(args.reference, spp, seed, args.size, args.scratch)
+                r = mitsuba(args.reference, spp, seed, args.size, args.scratch,
+                            args.mitsuba_variant)
                 mitsuba_rate = r["spp"] / r["s"]
-                results.setdefault(("mitsuba box", budget), []).append(r)
+                results.setdefault((f"mitsuba {args.mitsuba_variant}", budget), []).append(r)
                 print(f"{budget:g} s mitsuba seed {seed}: {r}", flush=True)
     print("\nmedians:")
     print("| budget | arm | spp | s | RMSE | rel. MSE | top 1% |")

@@ -125,6 +125,7 @@ def render(args):
         image = mi.render(loaded, seed=args.seed)
         import drjit as dr
         dr.eval(image)
+        dr.sync_thread()  # the LLVM backend runs kernels asynchronously
         seconds = time.time() - start
     mi.util.write_bitmap(args.output, image)
     print(f"{args.output}: {args.size}x{args.size}, {args.spp} spp, filter {args.filter}, "
