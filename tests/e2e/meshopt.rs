@@ -450,15 +450,9 @@ fn compressed_views_are_decoded_even_when_extensions_used_forgets_them() {
     assert_eq!(meshes(&path).0, meshes(&gltf).0);
 }
 
-/// A real gltfpack file (`tests/data/gltfpack/README.md`: the Blender export
-/// `assets/blender/primitives.glb` through `gltfpack -cc`: meshes merged, meshopt
-/// compression with its filters, quantized positions, normals and texture coordinates)
-/// renders as its source: the same seed's image means agree to within 1.5% per channel and
-/// every lit 20 x 15 block to within 5% (measured: 0.2-0.5% and at most 2.4% at 64 spp; the
-/// quantization moves vertices by up to 1/65535 of the mesh's extent and turns normals by
-/// up to about 1 degree, which shifts the reflections in the mirror and glass balls).
-#[test]
-fn a_gltfpack_export_renders_as_its_source() {
+/// Renders two files with the same settings and seed and checks that they agree: image
+/// means to within 1.5% per channel and every lit 20 x 15 block to within 5%.
+fn assert_render_alike(source: &str, packed: &str) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let settings = wavetrace::RenderSettings {
         width: 80,
@@ -473,8 +467,8 @@ fn a_gltfpack_export_renders_as_its_source() {
         let flat = wavetrace::flatten(&scene.world, &path).expect("flattens");
         crate::common::render_image(&flat, &settings)
     };
-    let source = image(root.join("assets/blender/primitives.glb"));
-    let packed = image(root.join("tests/data/gltfpack/primitives-meshopt.glb"));
+    let source = image(root.join(source));
+    let packed = image(root.join(packed));
     let (a, b) = (crate::common::mean(&source), crate::common::mean(&packed));
     for c in 0..3 {
         assert!(
@@ -505,6 +499,31 @@ fn a_gltfpack_export_renders_as_its_source() {
         }
     }
     assert!(lit >= 8, "only {lit} lit blocks");
+}
+
+/// A real gltfpack file (`tests/data/gltfpack/README.md`: the Blender export
+/// `assets/blender/primitives.glb` through `gltfpack -cc`: meshes merged, meshopt
+/// compression with its filters, quantized positions, normals and texture coordinates)
+/// renders as its source (measured: means within 0.2-0.5%, blocks within 2.4% at 64 spp; the
+/// quantization moves vertices by up to 1/65535 of the mesh's extent and turns normals by
+/// up to about 1 degree, which shifts the reflections in the mirror and glass balls).
+#[test]
+fn a_gltfpack_export_renders_as_its_source() {
+    assert_render_alike(
+        "assets/blender/primitives.glb",
+        "tests/data/gltfpack/primitives-meshopt.glb",
+    );
+}
+
+/// gltfpack's instancing (`-mi`: 27 nodes sharing a torus become one node with 27
+/// `EXT_mesh_gpu_instancing` instances, quantized and meshopt-compressed) renders as the
+/// 27 nodes (measured: means within 0.03%, blocks within 0.6%).
+#[test]
+fn a_gltfpack_instanced_export_renders_as_its_nodes() {
+    assert_render_alike(
+        "tests/data/gltfpack/torus-grid.gltf",
+        "tests/data/gltfpack/torus-grid-instanced.glb",
+    );
 }
 
 /// A real Draco file (`gltf-pipeline -d` of the same export) is refused with an error that
