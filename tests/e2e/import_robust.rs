@@ -191,6 +191,61 @@ fn valid_files_the_strict_reader_refused_load() {
     let path = doc.write(dir.path(), "no-nodes.gltf", json!({"scenes": [{}]}));
     let scene = load(&path);
     assert!(triangles(&scene).is_empty());
+
+    // No scenes at all (glTF-Blender-IO's roundtrip file `00_no_scenes`): the root nodes are
+    // rendered, as Blender imports them, with one warning; a child is drawn once, under its
+    // parent's transform.
+    let mut doc = GltfDoc::default();
+    let p = doc.positions(&SQUARE[..3]);
+    let mut gltf = one_mesh(json!([{"attributes": {"POSITION": p}}]));
+    gltf.as_object_mut().unwrap().remove("scenes");
+    gltf["nodes"] = json!([
+        {"name": "root", "mesh": 0, "children": [1]},
+        {"name": "child", "mesh": 0, "translation": [0.0, 0.0, 5.0]},
+        {"name": "other root", "mesh": 0, "translation": [0.0, 0.0, -5.0]},
+    ]);
+    let path = doc.write(dir.path(), "no-scenes.gltf", gltf);
+    let scene = load(&path);
+    let tris = triangles_in_world(&scene);
+    let mut heights: Vec<f32> = tris.iter().map(|t| t[0].z).collect();
+    heights.sort_by(f32::total_cmp);
+    assert_eq!(heights, [-5.0, 0.0, 5.0]);
+    assert_eq!(
+        local_warnings(&scene, dir.path()),
+        ["no-scenes.gltf: the file has no scene; its 2 root nodes are rendered"]
+    );
+
+    // Neither scenes nor nodes: an error that says so.
+    let mut doc = GltfDoc::default();
+    doc.positions(&SQUARE);
+    let path = doc.write(dir.path(), "library.gltf", json!({}));
+    let error = import_model(&path, UpAxis::Z)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(
+        error.contains("library.gltf") && error.contains("no scene and no nodes"),
+        "{error}"
+    );
+}
+
+/// Every mesh's triangles (shared or not) placed by its entity's transform.
+fn triangles_in_world(scene: &wavetrace::Scene) -> Vec<[Vec3; 3]> {
+    use wavetrace::scene::{SharedMesh, Transform, mesh_of};
+    let mut out = Vec::new();
+    for (mesh, shared, transform) in scene
+        .world
+        .query::<(Option<&Mesh>, Option<&SharedMesh>, &Transform)>()
+        .iter()
+    {
+        let Some(mesh) = mesh_of(mesh, shared) else {
+            continue;
+        };
+        for t in &mesh.indices {
+            out.push(t.map(|i| transform.0.transform_point3(mesh.positions[i as usize])));
+        }
+    }
+    out
 }
 
 /// A textured triangle whose base colour image is `uri` (with `extra` merged into the texture).

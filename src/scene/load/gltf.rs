@@ -186,19 +186,17 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         volume: None,
     };
 
-    let scene = document
-        .default_scene()
-        .or_else(|| document.scenes().next())
-        .ok_or_else(|| Error::input(path, None, "the file has no scene"))?;
+    let roots = scene_roots(&document, path, &mut warnings)?;
     let mut world = hecs::World::new();
     let world_from_file = up.world_from_file();
-    let mut stack: Vec<(gltf::Node, Affine3A, usize)> = scene
-        .nodes()
-        .map(|n| (n, world_from_file, 0usize))
+    let mut stack: Vec<(gltf::Node, Affine3A, usize)> = roots
+        .iter()
+        .map(|n| (n.clone(), world_from_file, 0usize))
         .collect();
     stack.reverse(); // visit in document order
     let node_count = document.nodes().len();
-    let node_world = gltf_deform::node_world_transforms(scene.nodes(), node_count, world_from_file);
+    let node_world =
+        gltf_deform::node_world_transforms(roots.iter().cloned(), node_count, world_from_file);
     let mut bad_skins = HashSet::new();
     // One warning per bad primitive even when several nodes use its mesh.
     let (mut skip_warned, mut lines_warned) = (HashSet::new(), HashSet::new());
@@ -506,6 +504,42 @@ fn image_users(document: &gltf::Document) -> HashMap<usize, String> {
         .into_iter()
         .map(|(image, names)| (image, names.join(", ")))
         .collect()
+}
+
+/// The root nodes to render: the default scene's (or the first scene's). A file without
+/// scenes is a library of nodes that the specification leaves to the application to show;
+/// as Blender's importer does, its root nodes (those no node has as a child) are rendered,
+/// with a warning. A file with neither scenes nor nodes has nothing to render.
+fn scene_roots<'a>(
+    document: &'a gltf::Document,
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<gltf::Node<'a>>> {
+    if let Some(scene) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    {
+        return Ok(scene.nodes().collect());
+    }
+    let mut is_child = vec![false; document.nodes().len()];
+    for child in document.nodes().flat_map(|n| n.children()) {
+        is_child[child.index()] = true;
+    }
+    let roots: Vec<gltf::Node> = document.nodes().filter(|n| !is_child[n.index()]).collect();
+    if roots.is_empty() {
+        return Err(Error::input(
+            path,
+            None,
+            "the file has no scene and no nodes: nothing to render",
+        ));
+    }
+    warnings.push(format!(
+        "{}: the file has no scene; its {} root node{} rendered",
+        path.display(),
+        roots.len(),
+        if roots.len() == 1 { " is" } else { "s are" }
+    ));
+    Ok(roots)
 }
 
 /// "image 2 ('wood.png')": an image and where it comes from, for warnings.
