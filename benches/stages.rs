@@ -146,6 +146,7 @@ fn prepare_sub_batch(
         roulette_min_bounces: defaults.roulette_min_bounces,
         max_depth: defaults.max_depth,
         sampler: defaults.sampler,
+        caustics: None,
     };
     let camera_paths = paths.clone();
     shade_hits(

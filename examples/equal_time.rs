@@ -10,7 +10,7 @@
 //! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
 //!     (--spp 16 | --time 4s | both) [--seeds 4] [--seed S] [--sampler independent|sobol] \
 //!     [--noise-threshold T [--min-spp N]] [--shadow-rays N] [--roulette-min-bounces N] \
-//!     [--no-mis] [--threads N] [--write out.exr]
+//!     [--no-mis] [--caustic-paths N] [--threads N] [--write out.exr]
 //! ```
 //!
 //! With `--noise-threshold` the render is adaptive (8x8 tiles stop at that threshold; with
@@ -73,6 +73,9 @@ struct Args {
     /// Light sampling only, no multiple importance sampling.
     #[arg(long)]
     no_mis: bool,
+    /// Light paths per pixel and pass for caustics (default: the renderer's; 0: off).
+    #[arg(long)]
+    caustic_paths: Option<f32>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -100,6 +103,7 @@ fn main() -> anyhow::Result<()> {
         }),
         shadow_rays: args.shadow_rays.unwrap_or(defaults.shadow_rays),
         mis: !args.no_mis,
+        caustic_paths: args.caustic_paths.unwrap_or(defaults.caustic_paths),
         sampler: match args.sampler {
             SamplerArg::Independent => Sampler::Independent,
             SamplerArg::Sobol => Sampler::Sobol,
@@ -116,7 +120,8 @@ fn main() -> anyhow::Result<()> {
     base.validate()?;
     let pixels = base.pixel_count();
     let mut runs: Vec<(f64, f64, ImageError)> = Vec::new();
-    // Rays (camera, bounce and shadow) per pixel: a cost that does not depend on the load.
+    // Rays (camera, bounce, shadow and caustic light paths) per pixel: a cost that does not
+    // depend on the load.
     let mut rays_per_pixel: Vec<f64> = Vec::new();
     for seed in args.seed..args.seed + args.seeds {
         let settings = RenderSettings { seed, ..base };
@@ -146,8 +151,7 @@ fn main() -> anyhow::Result<()> {
         let image = film.resolve();
         let e = image_error(&image, &reference).context("size differs from the reference")?;
         let spp = stats.samples as f64 / pixels as f64;
-        let rays =
-            (stats.camera_rays + stats.bounce_rays + stats.shadow_rays) as f64 / pixels as f64;
+        let rays = stats.total_rays() as f64 / pixels as f64;
         rays_per_pixel.push(rays);
         println!(
             "seed {seed}: {spp:.1} spp, {rays:.1} rays per pixel in {seconds:.2} s: rmse {:.5} ({:.4} of the mean), mse {:.6}, \

@@ -14,6 +14,12 @@ pub struct PinholeCamera {
     /// Step across one pixel downward.
     pixel_down: Vec3A,
     width: u32,
+    height: u32,
+    /// Unit normal of the image plane (toward the scene) and its distance from the eye.
+    plane_normal: Vec3A,
+    plane_distance: f32,
+    /// Area of one pixel on the image plane.
+    pixel_area: f32,
 }
 
 impl PinholeCamera {
@@ -25,13 +31,66 @@ impl PinholeCamera {
         let right = forward.cross(up).normalize();
         let half_height = (camera.vfov * 0.5).tan();
         let half_width = half_height * width as f32 / height as f32;
+        let top_left = forward - half_width * right + half_height * up;
+        let pixel_right = right * (2.0 * half_width / width as f32);
+        let pixel_down = -up * (2.0 * half_height / height as f32);
+        // The plane spanned by the pixel steps (perpendicular to `forward` unless the up
+        // vector was not perpendicular to it), facing the scene.
+        let normal = pixel_right.cross(pixel_down).normalize();
+        let plane_normal = if normal.dot(forward) < 0.0 {
+            -normal
+        } else {
+            normal
+        };
         PinholeCamera {
             eye: camera.eye.into(),
-            top_left: forward - half_width * right + half_height * up,
-            pixel_right: right * (2.0 * half_width / width as f32),
-            pixel_down: -up * (2.0 * half_height / height as f32),
+            top_left,
+            pixel_right,
+            pixel_down,
             width,
+            height,
+            plane_normal,
+            plane_distance: top_left.dot(plane_normal),
+            pixel_area: pixel_right.cross(pixel_down).length(),
         }
+    }
+
+    /// The eye (the pinhole).
+    #[inline]
+    pub fn eye(&self) -> Vec3A {
+        self.eye
+    }
+
+    /// The density, per unit solid angle, of the direction of a camera ray of one pixel when
+    /// that ray goes along `direction` (unit) through the pixel: the box filter samples the
+    /// pixel's area on the image plane uniformly, and an area `dA` there subtends
+    /// `dA cos^3(theta) / h^2` (`h` the plane's distance, `theta` the angle to its normal).
+    /// Zero for directions away from the image plane.
+    #[inline]
+    pub fn direction_density(&self, direction: Vec3A) -> f32 {
+        let cos = direction.dot(self.plane_normal);
+        if cos <= 0.0 {
+            return 0.0;
+        }
+        self.plane_distance * self.plane_distance / (self.pixel_area * cos * cos * cos)
+    }
+
+    /// The pixel (row-major index) whose camera rays pass through the world point `p`, if
+    /// it lies in front of the camera and projects into the image.
+    #[inline]
+    pub fn pixel_of(&self, p: Vec3A) -> Option<u32> {
+        let d = p - self.eye;
+        let along = d.dot(self.plane_normal);
+        if along <= 0.0 || !along.is_finite() {
+            return None;
+        }
+        let on_plane = d * (self.plane_distance / along) - self.top_left;
+        let x = on_plane.dot(self.pixel_right) / self.pixel_right.length_squared();
+        let y = on_plane.dot(self.pixel_down) / self.pixel_down.length_squared();
+        let inside = x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32;
+        // Rounding at the far edge can still give the width or height itself.
+        let (column, row) = (x as u32, y as u32);
+        (inside && column < self.width && row < self.height).then(|| row * self.width + column)
     }
 
     /// The ray through `jitter` (in [0,1)^2) inside pixel `pixel` (row-major, row 0 at the
@@ -72,5 +131,60 @@ mod tests {
             (p - Vec3A::new(0.0, -1.0, -1.0)).length() < 1e-4,
             "bottom-right: {p}"
         );
+    }
+
+    #[test]
+    fn pixel_of_inverts_generate_ray() {
+        let c = Camera::look_at(
+            Vec3::new(0.3, -2.0, 0.5),
+            Vec3::new(0.0, 0.0, 0.2),
+            Vec3::Z,
+            50f32.to_radians(),
+        );
+        let cam = PinholeCamera::new(&c, 37, 23);
+        for pixel in [0, 5, 36, 37 * 11 + 17, 37 * 23 - 1] {
+            let (o, d) = cam.generate_ray(pixel, Vec2::new(0.25, 0.75));
+            assert_eq!(cam.pixel_of(o + 3.7 * d), Some(pixel));
+        }
+        assert_eq!(cam.pixel_of(cam.eye() - Vec3A::new(0.0, 1.0, 0.0)), None);
+    }
+
+    #[test]
+    fn direction_density_integrates_to_one_over_a_pixel() {
+        // The solid angle of a pixel (the integral of 1 / density over it) against the solid
+        // angle its four corner rays bound, from the closed form of a planar quadrilateral
+        // (two spherical triangles, Van Oosterom and Strackee).
+        let c = Camera::look_at(Vec3::ZERO, Vec3::X, Vec3::Z, 70f32.to_radians());
+        let cam = PinholeCamera::new(&c, 16, 12);
+        let triangle = |a: Vec3A, b: Vec3A, c: Vec3A| {
+            let numerator = a.dot(b.cross(c)).abs();
+            let denominator = 1.0 + a.dot(b) + b.dot(c) + c.dot(a);
+            2.0 * numerator.atan2(denominator) as f64
+        };
+        for pixel in [0, 7 * 16 + 9, 16 * 12 - 1] {
+            let corner = |x: f32, y: f32| cam.generate_ray(pixel, Vec2::new(x, y)).1;
+            let (a, b, c, d) = (
+                corner(0.0, 0.0),
+                corner(1.0, 0.0),
+                corner(1.0, 1.0),
+                corner(0.0, 1.0),
+            );
+            let exact = triangle(a, b, c) + triangle(a, c, d);
+            let n = 64;
+            let mut sum = 0.0f64;
+            for i in 0..n {
+                for j in 0..n {
+                    let jitter =
+                        Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                    let (_, dir) = cam.generate_ray(pixel, jitter);
+                    sum += 1.0 / cam.direction_density(dir) as f64;
+                }
+            }
+            let estimate = sum / (n * n) as f64;
+            assert!(
+                (estimate / exact - 1.0).abs() < 1e-3,
+                "{estimate} vs {exact}"
+            );
+        }
     }
 }

@@ -111,6 +111,12 @@ struct RenderArgs {
     /// discarded instead of being combined with the shadow rays by multiple importance sampling.
     #[arg(long)]
     no_mis: bool,
+    /// Light paths per pixel and pass that find caustics seen directly (light -> mirror or
+    /// glass -> diffuse surface), combined with the path tracer by multiple importance
+    /// sampling (default 1); 0 turns them off. Only scenes with a mirror or smooth glass and
+    /// an area, point or spot light trace them.
+    #[arg(long, value_parser = parse_caustic_paths)]
+    caustic_paths: Option<f32>,
     /// Seed of the random numbers; the same seed gives the same image on any thread count.
     #[arg(long, default_value_t = wavetrace::math::rng::DEFAULT_SEED)]
     seed: u64,
@@ -186,6 +192,17 @@ fn parse_noise_threshold(text: &str) -> std::result::Result<f32, String> {
         return Err(format!("the noise threshold must lie in 0..=1, got {text}"));
     }
     Ok(threshold)
+}
+
+fn parse_caustic_paths(text: &str) -> std::result::Result<f32, String> {
+    use wavetrace::settings::MAX_CAUSTIC_PATHS;
+    let paths: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(0.0..=MAX_CAUSTIC_PATHS).contains(&paths) {
+        return Err(format!(
+            "caustic light paths per pixel must lie in 0..={MAX_CAUSTIC_PATHS}, got {text}"
+        ));
+    }
+    Ok(paths)
 }
 
 fn parse_time_budget(text: &str) -> std::result::Result<Duration, String> {
@@ -349,6 +366,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             sampler: args.sampler.map(Into::into),
             noise_threshold: args.noise_threshold,
             min_spp: args.min_spp,
+            caustic_paths: args.caustic_paths,
         };
         let mut settings =
             RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);

@@ -77,7 +77,18 @@ pub struct RenderSettings {
     /// Safety cap on path depth; paths cut there are counted in the statistics. It is high
     /// enough that Russian roulette practically always ends paths first.
     pub max_depth: u32,
+    /// Light paths per pixel and pass for directly seen caustics (light -> mirror or glass
+    /// -> diffuse surface -> camera), combined with the path tracer by multiple importance
+    /// sampling (`wavefront::light_paths`); 0 turns them off. They run only in scenes with a
+    /// delta surface and an area, point or spot light.
+    pub caustic_paths: f32,
 }
+
+/// Default light paths per pixel and pass for caustics: one (docs/sampling.md, section 7).
+pub const DEFAULT_CAUSTIC_PATHS: f32 = 1.0;
+
+/// Most light paths per pixel and pass.
+pub const MAX_CAUSTIC_PATHS: f32 = 64.0;
 
 impl Default for RenderSettings {
     fn default() -> Self {
@@ -93,6 +104,7 @@ impl Default for RenderSettings {
             batch_size: 4096,
             roulette_min_bounces: 1,
             max_depth: 1024,
+            caustic_paths: DEFAULT_CAUSTIC_PATHS,
         }
     }
 }
@@ -121,6 +133,8 @@ pub struct RenderOverrides {
     pub noise_threshold: Option<f32>,
     /// Adaptive sampling's minimum samples per pixel.
     pub min_spp: Option<u32>,
+    /// Light paths per pixel and pass for caustics; 0 turns them off.
+    pub caustic_paths: Option<f32>,
 }
 
 impl RenderSettings {
@@ -188,6 +202,7 @@ impl RenderSettings {
             sampler: (overrides.sampler)
                 .or(scene.sampler)
                 .unwrap_or(defaults.sampler),
+            caustic_paths: overrides.caustic_paths.unwrap_or(defaults.caustic_paths),
             ..defaults
         }
     }
@@ -236,6 +251,12 @@ impl RenderSettings {
         }
         if self.max_depth == 0 {
             return bad("maximum depth must be at least 1".into());
+        }
+        if !(0.0..=MAX_CAUSTIC_PATHS).contains(&self.caustic_paths) {
+            return bad(format!(
+                "caustic light paths per pixel must lie in 0..={MAX_CAUSTIC_PATHS}, got {}",
+                self.caustic_paths
+            ));
         }
         Ok(())
     }

@@ -10,6 +10,7 @@ mod punctual;
 mod single;
 
 pub use environment::Environment;
+pub(crate) use punctual::spot_falloff;
 pub use punctual::{DeltaKind, DeltaLight};
 use single::{SingleLight, single_light};
 

@@ -88,7 +88,7 @@ impl DeltaLight {
 /// linear ramp from the outer cone (0) to the inner cone (1), or, when the cones coincide,
 /// 1 inside and 0 outside (a hard edge, with no division by their zero difference).
 #[inline]
-pub(super) fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
+pub(crate) fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
     if cos_inner > cos_outer {
         ((cos - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
     } else if cos >= cos_outer {

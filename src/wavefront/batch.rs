@@ -73,6 +73,11 @@ pub struct PathState {
     /// Absorption coefficient of the medium the path travels in (`KHR_materials_volume`):
     /// set when it refracts into an absorbing object, zero outside.
     pub medium: Vec<Rgb>,
+    /// For a path whose camera ray hit a non-delta surface and whose bounces since were all
+    /// delta ones: the part of the light-tracing MIS ratio that the camera vertex gives
+    /// ([`super::light_paths::camera_vertex_factor`]); 0 for every other path (and when no
+    /// light paths are traced).
+    pub caustic_factor: Vec<f32>,
 }
 
 impl PathState {
@@ -97,6 +102,7 @@ impl PathState {
         self.alive.resize(n, false);
         self.radiance_scale.resize(n, 1.0);
         self.medium.resize(n, Rgb::ZERO);
+        self.caustic_factor.resize(n, 0.0);
     }
 }
 
@@ -153,13 +159,25 @@ impl ShadowBatch {
 
 /// Stable, order-preserving compaction after a bounce: paths still alive move to the front
 /// (with their next rays, which become the current rays), and finished paths deliver their
-/// radiance to the film. Sequential on purpose: the film receives samples in the same order
-/// on every run.
-pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut FilmRegion) {
+/// radiance to the film, together with the pass's light-path splats on their pixel
+/// (`splats`, one per pixel of the film, or empty without light paths): one sample of the
+/// combined estimator. Sequential on purpose: the film receives samples in the same order on
+/// every run.
+pub fn compact_paths(
+    paths: &mut PathState,
+    next_rays: &mut RayBatch,
+    splats: &[Rgb],
+    film: &mut FilmRegion,
+) {
     let mut kept = 0;
     for i in 0..paths.len() {
         if !paths.alive[i] {
-            film.add_sample(paths.pixel[i], paths.radiance[i]);
+            let pixel = paths.pixel[i];
+            let radiance = match splats.get(pixel as usize) {
+                Some(splat) => paths.radiance[i] + *splat,
+                None => paths.radiance[i],
+            };
+            film.add_sample(pixel, radiance);
             continue;
         }
         paths.pixel[kept] = paths.pixel[i];
@@ -170,6 +188,7 @@ pub fn compact_paths(paths: &mut PathState, next_rays: &mut RayBatch, film: &mut
         paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
         paths.radiance_scale[kept] = paths.radiance_scale[i];
         paths.medium[kept] = paths.medium[i];
+        paths.caustic_factor[kept] = paths.caustic_factor[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

@@ -16,6 +16,7 @@
 pub mod batch;
 pub mod generate;
 pub mod intersect;
+pub mod light_paths;
 mod next_event;
 pub mod shade;
 pub mod shadow;
@@ -25,9 +26,11 @@ mod surface;
 use crate::camera::PinholeCamera;
 use crate::error::Result;
 use crate::film::{Film, FilmRegion};
+use crate::math::Rgb;
 use crate::render_scene::RenderScene;
 use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
+use light_paths::CausticWeights;
 use rayon::prelude::*;
 use shade::ShadeParams;
 use stats::RenderStats;
@@ -93,7 +96,33 @@ pub fn render(
         spare: Mutex::new(Vec::new()),
     };
 
+    let caustics_traced = light_paths::caustics_traced(scene, settings);
+    // The pass's light-path splats, one per pixel (empty without light paths).
+    let mut splats: Vec<Rgb> = Vec::new();
+
     'passes: for sample_index in 0..settings.spp {
+        let caustics = if caustics_traced {
+            let active_pixels = tiles
+                .as_ref()
+                .map_or(pixel_count as u64, |t| t.active_pixels());
+            let light_paths = light_paths::light_path_count(settings, active_pixels);
+            let start = Instant::now();
+            stats.light_rays += light_paths::trace_light_paths(
+                scene,
+                settings,
+                &camera,
+                sample_index,
+                light_paths,
+                &mut splats,
+            );
+            stats.light_time += start.elapsed();
+            Some(CausticWeights {
+                light_paths: light_paths as f32,
+                camera,
+            })
+        } else {
+            None
+        };
         let rounds = (0..pixel_count).step_by(round_size as usize);
         let last_round = rounds.len() - 1;
         for (round_number, first) in rounds.enumerate() {
@@ -103,6 +132,8 @@ pub fn render(
                 settings,
                 sample_index,
                 active: tiles.as_ref().map(|t| &t.pixel_active[..]),
+                caustics,
+                splats: &splats,
             };
             let pixels = first..(first + round_size).min(pixel_count);
             let round = film
@@ -282,6 +313,10 @@ struct Batch<'a> {
     sample_index: u32,
     /// Adaptive sampling: which pixels take this sample.
     active: Option<&'a [bool]>,
+    /// The pass's light paths for caustics, if any: how the path tracer weights the caustics
+    /// it finds, and their splats, which each pixel's sample carries into the film.
+    caustics: Option<CausticWeights>,
+    splats: &'a [Rgb],
 }
 
 impl Batch<'_> {
@@ -325,6 +360,7 @@ impl Batch<'_> {
                 roulette_min_bounces: settings.roulette_min_bounces,
                 max_depth: settings.max_depth,
                 sampler: settings.sampler,
+                caustics: self.caustics,
             };
             stats.capped_paths += timed(&mut stats.stage_time[2], || {
                 shade::shade_hits(
@@ -343,7 +379,7 @@ impl Batch<'_> {
             });
             // finished paths go to the film; survivors continue with their next rays
             timed(&mut stats.stage_time[4], || {
-                compact_paths(&mut b.paths, &mut b.next_rays, film)
+                compact_paths(&mut b.paths, &mut b.next_rays, self.splats, film)
             });
             std::mem::swap(&mut b.rays, &mut b.next_rays);
         }

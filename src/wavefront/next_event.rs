@@ -418,6 +418,7 @@ pub(super) mod tests {
                     roulette_min_bounces: 3,
                     max_depth: 8,
                     sampler: Sampler::Independent,
+                    caustics: None,
                 };
                 for i in 0..300 {
                     let u = |d: u32| uniform(path_key(31, i, b as u32), 0, d);

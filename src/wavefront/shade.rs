@@ -3,6 +3,7 @@
 //! Russian roulette.
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
+use super::light_paths::{self, CausticWeights};
 use super::next_event::{self, GROUPS_PER_PASS, Media, NextEvent, ShadingPoint, ShadowView};
 use super::surface;
 use crate::bsdf::Bsdf;
@@ -32,6 +33,9 @@ pub struct ShadeParams {
     pub max_depth: u32,
     /// Where the random numbers come from.
     pub sampler: Sampler,
+    /// With light paths for caustics in the pass: what weights the caustic paths the path
+    /// tracer finds against them ([`super::light_paths`]).
+    pub caustics: Option<CausticWeights>,
 }
 
 /// Shades every hit of the batch. Writes each path's next ray into `next_rays` (same index)
@@ -95,6 +99,7 @@ fn shade_batch<const THROUGH: bool>(
             alive: &mut paths.alive[i],
             radiance_scale: &mut paths.radiance_scale[i],
             medium: &mut paths.medium[i],
+            caustic_factor: &mut paths.caustic_factor[i],
             next_origin: &mut next_rays.origin[i],
             next_direction: &mut next_rays.direction[i],
         };
@@ -142,6 +147,7 @@ struct PathView<'a> {
     alive: &'a mut bool,
     radiance_scale: &'a mut f32,
     medium: &'a mut Rgb,
+    caustic_factor: &'a mut f32,
     next_origin: &'a mut Vec3A,
     next_direction: &'a mut Vec3A,
 }
@@ -176,7 +182,7 @@ fn escaped(
 
 /// The absorption coefficient of the medium inside `material` (zero if it has none).
 #[inline]
-fn material_absorption(scene: &RenderScene, material: usize) -> Rgb {
+pub(super) fn material_absorption(scene: &RenderScene, material: usize) -> Rgb {
     scene
         .material_absorption
         .get(material)
@@ -238,7 +244,15 @@ fn shade_one<const THROUGH: bool>(
         if front || light.two_sided {
             let emitted = surface::emitted_radiance(scene, emitter, hit.barycentric);
             if *path.count_emission {
-                *path.radiance += *path.throughput * emitted;
+                // A caustic path (camera, non-delta hit, delta bounces, light) that the
+                // light paths find too: weighted against them.
+                let weight = match &params.caustics {
+                    Some(caustics) if bounce >= 2 && *path.caustic_factor > 0.0 => {
+                        light_paths::path_tracer_weight(caustics, light, *path.caustic_factor)
+                    }
+                    _ => 1.0,
+                };
+                *path.radiance += *path.throughput * emitted * weight;
             } else {
                 let weight = next_event::emission_weight(
                     *path.bsdf_pdf,
@@ -319,6 +333,20 @@ fn shade_one<const THROUGH: bool>(
     let transmitted = sample.wi.z * wo_local.z < 0.0;
     if ((ng.dot(wi) > 0.0) == front) == transmitted {
         return false; // the shading normal sent the ray through the wrong side of the surface
+    }
+    if let Some(caustics) = &params.caustics {
+        // The camera vertex's part of the light-tracing weight, kept through delta bounces.
+        if bounce == 0 && !sample.is_delta {
+            *path.caustic_factor = light_paths::camera_vertex_factor(
+                ng.dot(wi).abs(),
+                sample.pdf,
+                ng.dot(wo).abs(),
+                hit.t,
+                caustics.camera.direction_density(hit.direction),
+            );
+        } else if !sample.is_delta {
+            *path.caustic_factor = 0.0;
+        }
     }
     *path.throughput *= sample.weight;
     if transmitted {

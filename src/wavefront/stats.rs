@@ -15,6 +15,10 @@ pub struct RenderStats {
     pub bounce_rays: u64,
     /// Shadow rays traced.
     pub shadow_rays: u64,
+    /// Rays of the light paths for caustics (their bounces and camera connections).
+    pub light_rays: u64,
+    /// Wall time of the light paths for caustics.
+    pub light_time: Duration,
     /// Paths completed (samples).
     pub samples: u64,
     /// Paths cut by the depth cap.
@@ -49,6 +53,8 @@ impl RenderStats {
         sum.camera_rays += other.camera_rays;
         sum.bounce_rays += other.bounce_rays;
         sum.shadow_rays += other.shadow_rays;
+        sum.light_rays += other.light_rays;
+        sum.light_time += other.light_time;
         sum.samples += other.samples;
         sum.capped_paths += other.capped_paths;
         sum.rejected_samples += other.rejected_samples;
@@ -57,7 +63,7 @@ impl RenderStats {
 
     /// All rays traced.
     pub fn total_rays(&self) -> u64 {
-        self.camera_rays + self.bounce_rays + self.shadow_rays
+        self.camera_rays + self.bounce_rays + self.shadow_rays + self.light_rays
     }
 
     /// One line: wall time, samples/s, rays/s, rays per kind and the share of time per stage.
@@ -89,6 +95,13 @@ impl RenderStats {
             line += &format!(
                 "; adaptive: spp min {}, mean {:.1}, max {}",
                 self.spp_min, self.spp_mean, self.spp_max
+            );
+        }
+        if self.light_rays > 0 {
+            line += &format!(
+                "; caustic light paths: {} rays in {:.2} s",
+                self.light_rays,
+                self.light_time.as_secs_f64()
             );
         }
         if self.capped_paths > 0 {

@@ -10,6 +10,7 @@
 
 mod adaptive;
 mod alpha;
+mod caustics;
 mod cli;
 mod cli_errors;
 mod cli_import_errors;
