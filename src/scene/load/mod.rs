@@ -14,7 +14,7 @@ mod gltf_geometry;
 mod gltf_memory;
 mod gltf_meshopt;
 mod obj;
-mod obj_check;
+mod obj_read;
 mod place;
 mod scene_file;
 
