@@ -10,8 +10,8 @@
 //! ```
 //!
 //! SIDE defaults to 1001 (2 million triangles, 75 MB of text). With `WAVETRACE_MEMTRACE` set
-//! the library prints the resident size after each phase (read, preprocess, tobj, meshes,
-//! loaded, shapes, binary bvh, 4-wide bvh, leaf prims, flattened) and the peak within it; the
+//! the library prints the resident size after each phase (parse, meshes, loaded, shapes,
+//! binary bvh, 4-wide bvh, leaf prims, flattened) and the peak within it; the
 //! final figure is then the last phase's peak only. The file is written line by line, so
 //! writing it adds little to the peak.
 

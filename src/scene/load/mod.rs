@@ -15,7 +15,7 @@ mod gltf_memory;
 mod gltf_meshopt;
 mod image_decode;
 mod obj;
-mod obj_check;
+mod obj_read;
 mod place;
 mod scene_file;
 

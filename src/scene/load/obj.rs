@@ -1,20 +1,20 @@
-//! Wavefront OBJ/MTL import through tobj: each object/group/`usemtl` run becomes one entity
-//! with its own [`Mesh`] and material, placed by the file's up-axis conversion.
+//! Wavefront OBJ/MTL import: the OBJ is read by our streaming reader ([`super::obj_read`]),
+//! the MTL libraries by tobj; each object/group/`usemtl` run becomes one entity with its own
+//! [`crate::scene::Mesh`] and material, placed by the file's up-axis conversion.
 //!
-//! Polygons are triangulated here by ear clipping in the polygon's plane, so concave faces
-//! come out right (tobj's own triangulation is a fan, correct only for convex faces). The MTL
+//! Polygons are triangulated by ear clipping in the polygon's plane ([`triangulate_polygon`]),
+//! so concave faces come out right (a fan is correct only for convex faces). The MTL
 //! mapping is documented in the README: `Kd`/`map_Kd`, `Ks`, `Ns`/`Pr`, `Pm`, `Ni` -> glTF
 //! metallic-roughness, `Ke` -> one-sided emitter, `illum 3` or a mirror-like `Ks` with high
 //! `Ns` -> mirror, `d` below 1 -> glass of index `Ni` (`Tr` is ignored, as Blender does). A
 //! polygon that cannot be cut into ears (twisted, non-planar) is triangulated as a fan, with a
 //! warning; bad faces are skipped with one warning.
 
-use super::{Scene, SceneDefaults, UpAxis, check_mesh, obj_check};
-use crate::error::{Error, Result};
-use crate::math::{Rgb, Vec2, Vec3, Vec4};
+use super::{Scene, SceneDefaults, UpAxis, check_mesh, obj_read};
+use crate::error::Result;
+use crate::math::{Rgb, Vec2, Vec3};
 use crate::scene::{
-    Emitter, FresnelModel, Material, MaterialTextures, Mesh, Name, TextureSlot, Transform,
-    VertexColors,
+    Emitter, FresnelModel, Material, MaterialTextures, Name, TextureSlot, Transform, VertexColors,
 };
 use crate::texture::Texture;
 use std::collections::HashMap;
@@ -31,7 +31,8 @@ const MIRROR_MIN_NS: f32 = 900.0;
 /// Loads an OBJ file (and its MTL libraries) into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     // Running out of memory while loading is refused with an error, not an allocation abort:
-    // the text is checked against its size, tobj's parse against its faces (below).
+    // the file's size first (its meshes take about as much as its text), then each growth
+    // of the reader's columns (`obj_read`).
     if let Ok(size) = std::fs::metadata(path).map(|m| m.len()) {
         crate::memory::check_fits(
             path,
@@ -43,53 +44,40 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             crate::memory::available(),
         )?;
     }
-    let raw = super::read_text(path)?;
-    crate::memory::trace_phase("read");
     let mut warnings = Vec::new();
-    let text = obj_check::preprocess(path, &raw, &mut warnings);
-    crate::memory::trace_phase("preprocess");
+    let obj = obj_read::read(path, load_mtl_checked, &mut warnings)?;
+    crate::memory::trace_phase("parse");
     let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-    let options = tobj::LoadOptions {
-        triangulate: false,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    // Line number (1-based) of every polygon, in file order, to name faces in messages; this
-    // also refuses face indices that tobj would mishandle.
-    let face_lines = obj_check::face_lines(&text)
-        .map_err(|(line, message)| Error::input(path, Some(format!("line {line}")), message))?;
-    check_parse_fits(path, face_lines.len(), text.len())?;
-    let mut mtl_names: Vec<PathBuf> = Vec::new();
-    let mtl_names_cell = std::cell::RefCell::new(&mut mtl_names);
-    let (models, materials) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |mtl| {
-        let full = dir.join(mtl);
-        mtl_names_cell.borrow_mut().push(full.clone());
-        load_mtl_checked(&full)
-    })
-    .map_err(|e| match obj_check::explain(&text, &e) {
-        Some((line, message)) => Error::input(path, Some(format!("line {line}")), message),
-        None => Error::input(
-            path,
-            first_failing_line(&text, &options).map(|l| format!("line {l}")),
-            format!("cannot parse OBJ: {e}"),
-        ),
-    })?;
-    let materials = match materials {
-        Ok(m) => m,
-        Err(e) => {
-            let names: Vec<String> = mtl_names.iter().map(|p| p.display().to_string()).collect();
+    if obj.materials.is_empty() {
+        if let Some(e) = obj.libraries.iter().find_map(|(_, e)| e.as_ref()) {
+            let names: Vec<String> = obj
+                .libraries
+                .iter()
+                .map(|(p, _)| p.display().to_string())
+                .collect();
             warnings.push(format!(
                 "{}: cannot read material library {} ({e}); using a default grey material",
                 path.display(),
                 names.join(", ")
             ));
-            Vec::new()
         }
-    };
+    } else {
+        // Some libraries loaded: each one that did not is named (tobj said nothing).
+        for (library, e) in &obj.libraries {
+            if let Some(e) = e {
+                warnings.push(format!(
+                    "{}: cannot read material library {} ({e}); faces using its materials \
+                     get a default grey",
+                    path.display(),
+                    library.display()
+                ));
+            }
+        }
+    }
 
     let mut texture_cache: HashMap<PathBuf, Option<Arc<Texture>>> = HashMap::new();
-    let imported: Vec<(Material, Option<Emitter>, Option<Arc<Texture>>)> = materials
+    let imported: Vec<(Material, Option<Emitter>, Option<Arc<Texture>>)> = obj
+        .materials
         .iter()
         .map(|m| import_material(m, &dir, &mut texture_cache, &mut warnings))
         .collect();
@@ -101,85 +89,15 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         None,
     );
 
-    // The text is not needed past tobj's parse (the rare error below reads the file again):
-    // freed before the meshes are built.
-    drop(text);
-    drop(raw);
     let mut world = hecs::World::new();
-    crate::memory::trace_phase("tobj");
     let transform = Transform(up.world_from_file());
-    let mut face_counter = 0usize;
-    // Faces triangulated as fans because ear clipping failed, and faces skipped: counted for
-    // one warning each, with the first line.
-    let (mut fanned, mut first_fanned) = (0usize, None);
-    let (mut skipped, mut first_skipped) = (0usize, None);
     let mut unknown_material_warned = false;
-    // Each model's arrays are freed once its mesh is built.
-    for model in models {
-        let m = &model.mesh;
-        let name = if model.name.is_empty() {
-            "unnamed".to_string()
-        } else {
-            model.name.clone()
-        };
-        let positions: Vec<Vec3> = m
-            .positions
-            .chunks_exact(3)
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect();
-        let n = positions.len();
-        let normals: Vec<Vec3> = m
-            .normals
-            .chunks_exact(3)
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect();
-        // OBJ's v runs up the image; wavetrace's (glTF's) runs down.
-        let uvs: Vec<Vec2> = m
-            .texcoords
-            .chunks_exact(2)
-            .map(|t| Vec2::new(t[0], 1.0 - t[1]))
-            .collect();
-        // `v x y z r g b`: tobj gives one colour per vertex (with single_index), or none.
-        let colors: Vec<Vec4> = m
-            .vertex_color
-            .chunks_exact(3)
-            .map(|c| {
-                Vec3::new(c[0], c[1], c[2])
-                    .clamp(Vec3::ZERO, Vec3::ONE)
-                    .extend(1.0)
-            })
-            .collect();
-        let arities: Vec<u32> = if m.face_arities.is_empty() {
-            vec![3; m.indices.len() / 3]
-        } else {
-            m.face_arities.clone()
-        };
-        let mut indices = Vec::with_capacity(m.indices.len());
-        let mut start = 0usize;
-        for &arity in &arities {
-            let polygon = &m.indices[start..start + arity as usize];
-            start += arity as usize;
-            let line = face_lines.get(face_counter).map(|&l| l as usize);
-            face_counter += 1;
-            if let Some(&bad) = polygon.iter().find(|&&i| i as usize >= n) {
-                skipped += 1;
-                first_skipped.get_or_insert((line, format!("vertex index {bad} out of range")));
-                continue;
-            }
-            if let Err(why) = triangulate_polygon(&positions, polygon, &mut indices) {
-                // A twisted or strongly non-planar polygon: a fan from its first vertex covers
-                // it (exactly so for a convex one), though maybe not as its author meant.
-                fanned += 1;
-                first_fanned.get_or_insert((line, why));
-                for k in 1..polygon.len() - 1 {
-                    indices.push([polygon[0], polygon[k], polygon[k + 1]]);
-                }
-            }
-        }
-        let (material, emitter, texture) = match m.material_id {
+    for run in obj.runs {
+        let name = run.name;
+        let (material, emitter, texture) = match run.material {
             Some(id) if id < imported.len() => imported[id].clone(),
             Some(_) | None => {
-                if !materials.is_empty() && !unknown_material_warned {
+                if !imported.is_empty() && !unknown_material_warned {
                     unknown_material_warned = true;
                     warnings.push(format!(
                         "{}: object '{name}' has no known material; using a default grey",
@@ -189,24 +107,9 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 default.clone()
             }
         };
-        let mesh = Mesh {
-            positions,
-            normals: if normals.len() == n {
-                normals
-            } else {
-                Vec::new()
-            },
-            uvs: if uvs.len() == n { uvs } else { Vec::new() },
-            indices,
-        };
-        if mesh.positions.iter().any(|p| !p.is_finite())
-            && let Some((line, message)) = non_finite_vertex_line(path)
-        {
-            return Err(Error::input(path, Some(format!("line {line}")), message));
-        }
-        check_mesh(path, &format!("object '{name}'"), &mesh)?;
-        let entity = world.spawn((Name(name), transform, mesh, material));
-        if colors.len() == n && colors.iter().all(|c| c.is_finite()) {
+        check_mesh(path, &format!("object '{name}'"), &run.mesh)?;
+        let entity = world.spawn((Name(name), transform, run.mesh, material));
+        if let Some(colors) = run.colors.filter(|c| c.iter().all(|c| c.is_finite())) {
             world
                 .insert_one(entity, VertexColors(colors))
                 .expect("just spawned");
@@ -227,98 +130,11 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         }
     }
     crate::memory::trace_phase("meshes");
-    let at = |line: Option<usize>| line.map_or(String::new(), |l| format!(", line {l}"));
-    if let Some((line, why)) = first_fanned {
-        warnings.push(format!(
-            "{}: {fanned} polygon{} could not be cut into ears and {} triangulated as a fan,              which may be wrong (first{}: {why})",
-            path.display(),
-            plural(fanned),
-            if fanned == 1 { "was" } else { "were" },
-            at(line)
-        ));
-    }
-    if let Some((line, why)) = first_skipped {
-        warnings.push(format!(
-            "{}: {skipped} face{} skipped (first{}: {why})",
-            path.display(),
-            plural(skipped),
-            at(line)
-        ));
-    }
-    if world.query::<&Mesh>().iter().all(|m| m.indices.is_empty()) && skipped > 0 {
-        return Err(Error::input(
-            path,
-            None,
-            "nothing renderable is left: every face was skipped",
-        ));
-    }
     Ok(Scene {
         world,
         defaults: SceneDefaults::default(),
         warnings,
     })
-}
-
-/// Resident bytes per face that tobj's parse takes at its peak: its face list (104 bytes a
-/// face, up to twice that while the list grows), its map of distinct vertices, the models it
-/// returns. Measured: a 2-million-triangle grid (75 MB of text) peaks 375 MB above the text.
-const PARSE_RESIDENT_PER_FACE: u64 = 200;
-/// The same in address space (allocator arenas, vectors reserved before they are filled): the
-/// same grid loads under `ulimit -v` 700 MB and aborts under 600 MB.
-const PARSE_ADDRESS_SPACE_PER_FACE: u64 = 300;
-
-/// Refuses a file whose parse would not fit in the memory the process can still take
-/// (see [`crate::memory`]): `faces` polygons in `text_len` bytes of text (the vertex
-/// arrays, at most a few bytes per byte of text, are counted through the text).
-fn check_parse_fits(path: &Path, faces: usize, text_len: usize) -> Result<()> {
-    let (faces, text) = (faces as u64, text_len as u64);
-    crate::memory::check_fits(
-        path,
-        &format!("parsing its {faces} faces"),
-        crate::memory::Needed {
-            resident: faces
-                .saturating_mul(PARSE_RESIDENT_PER_FACE)
-                .saturating_add(text),
-            address_space: faces
-                .saturating_mul(PARSE_ADDRESS_SPACE_PER_FACE)
-                .saturating_add(2 * text),
-        },
-        crate::memory::available(),
-    )
-}
-
-/// The line and message of the file's first vertex that is not finite, read again from the
-/// file (an error path: the text is not kept while the meshes are built).
-fn non_finite_vertex_line(path: &Path) -> Option<(usize, String)> {
-    let raw = super::read_text(path).ok()?;
-    let text = obj_check::preprocess(path, &raw, &mut Vec::new());
-    obj_check::non_finite_vertex(&text)
-}
-
-fn plural(n: usize) -> &'static str {
-    if n == 1 { "" } else { "s" }
-}
-
-/// The line at which tobj's parse first fails (tobj reports no position): the shortest
-/// failing prefix of the file, found by bisection.
-fn first_failing_line(text: &str, options: &tobj::LoadOptions) -> Option<usize> {
-    let lines: Vec<&str> = text.lines().collect();
-    let fails = |k: usize| {
-        let prefix = lines[..k].join("\n");
-        tobj::load_obj_buf(&mut prefix.as_bytes(), options, |_| {
-            Err(tobj::LoadError::OpenFileFailed)
-        })
-        .is_err()
-    };
-    if !fails(lines.len()) {
-        return None;
-    }
-    let (mut good, mut bad) = (0, lines.len()); // parsing `good` lines works, `bad` fails
-    while bad - good > 1 {
-        let mid = (good + bad) / 2;
-        if fails(mid) { bad = mid } else { good = mid }
-    }
-    Some(bad)
 }
 
 /// `tobj::load_mtl`, except that colour lines (`Ka`, `Kd`, `Ks`, `Ke`) with fewer than three

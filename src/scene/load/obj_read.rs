@@ -1,0 +1,1263 @@
+//! The OBJ reader: reads the file line by line through a `BufReader` (never its whole text)
+//! and writes each object/group/`usemtl` run straight into the compact columns of a [`Mesh`]
+//! (positions; normals, texture coordinates and vertex colours only when the file has them;
+//! `u32` triangles), checking every statement as it goes, so that errors name the line.
+//!
+//! Our own reader rather than tobj's (tobj still reads the MTL files): tobj has no streaming
+//! or memory-bounded mode; it keeps a 104-byte record per face and a map of every distinct
+//! vertex until the end of the file, about 200 bytes per face on top of the text (issue 21).
+//!
+//! Rules, those of the OBJ format as tobj and Blender read it: a line ending in `\` continues
+//! on the next; index 0 is invalid; a negative index counts back from the last element
+//! defined above the line; a positive one may refer forward, but not past the file's last
+//! element. `l` lines, `p` points and faces of fewer than three vertices are skipped with one
+//! warning each. Polygons are cut into ears ([`super::obj::triangulate_polygon`]) as they are
+//! read; one referring forward waits until its run's vertices are gathered at the end.
+
+use crate::error::{Error, Result};
+use crate::math::{Vec2, Vec3, Vec4};
+use crate::scene::Mesh;
+use std::collections::HashMap;
+use std::io::BufRead;
+use std::path::{Path, PathBuf};
+
+/// A missing `vt` or `vn` index in a corner.
+const NONE: u32 = u32::MAX;
+/// The name of a run before any `o` or `g` (tobj's, which messages and tests know).
+const UNNAMED: &str = "unnamed_object";
+/// Growth of the large columns below this many bytes is not checked against the memory
+/// left (reading /proc for every small vector would cost more than it protects).
+const CHECKED_GROWTH: usize = 1 << 20;
+
+/// One object/group/`usemtl` run of the file, ready to become an entity.
+pub(super) struct Run {
+    /// The `o`/`g` name (`unnamed_object` before any).
+    pub name: String,
+    /// Index into [`Obj::materials`], `None` without a known `usemtl`.
+    pub material: Option<usize>,
+    /// The run's own vertices (in order of first use, as tobj numbers them) and triangles.
+    pub mesh: Mesh,
+    /// `v x y z r g b` colours per vertex (clamped, alpha 1), when the file has colours.
+    pub colors: Option<Vec<Vec4>>,
+}
+
+/// What [`read`] returns: the runs in file order and the materials of the `mtllib` files.
+pub(super) struct Obj {
+    pub runs: Vec<Run>,
+    pub materials: Vec<tobj::Material>,
+    /// The `mtllib` files named, in order, with the error of each one that failed to load.
+    pub libraries: Vec<(PathBuf, Option<tobj::LoadError>)>,
+}
+
+/// Reads the OBJ file at `path`, loading each `mtllib` through `load_mtl` (given the full
+/// path). Warnings about skipped elements go to `warnings`, one per kind.
+pub(super) fn read(
+    path: &Path,
+    load_mtl: impl FnMut(&Path) -> tobj::MTLLoadResult,
+    warnings: &mut Vec<String>,
+) -> Result<Obj> {
+    if path.is_dir() {
+        return Err(Error::input(path, None, "is a directory, not a file"));
+    }
+    let cannot_read = |source| Error::Io {
+        path: path.to_path_buf(),
+        action: "cannot read",
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(cannot_read)?;
+    let mut input = std::io::BufReader::with_capacity(1 << 16, file);
+    let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let mut reader = Reader::new(path, dir, load_mtl);
+    let mut bytes = Vec::new();
+    let mut logical = String::new();
+    let (mut number, mut first) = (0usize, 0usize);
+    loop {
+        bytes.clear();
+        if input.read_until(b'\n', &mut bytes).map_err(cannot_read)? == 0 {
+            break;
+        }
+        number += 1;
+        let line = std::str::from_utf8(&bytes).map_err(|_| {
+            Error::input(
+                path,
+                Some(format!("line {number}")),
+                "the line is not UTF-8 text",
+            )
+        })?;
+        if logical.is_empty() {
+            first = number;
+        }
+        // `\` at the end continues the statement on the next line (its number is the first's).
+        let trimmed = line.trim_end();
+        if let Some(kept) = trimmed.strip_suffix('\\') {
+            logical.push_str(kept);
+            logical.push(' ');
+            continue;
+        }
+        if logical.is_empty() {
+            reader.statement(line, number)?;
+        } else {
+            logical.push_str(line);
+            let joined = std::mem::take(&mut logical);
+            reader.statement(&joined, first)?;
+            logical = joined;
+            logical.clear();
+        }
+    }
+    if !logical.is_empty() {
+        let joined = std::mem::take(&mut logical);
+        reader.statement(&joined, first)?;
+    }
+    reader.finish(warnings)
+}
+
+/// Corners of a run: the global indices of each of its vertices, in order of first use.
+enum Corners {
+    /// Every corner so far names a position only (`f 1 2 3`): the position is the vertex.
+    Positions(Vec<u32>),
+    /// Some corner carries `vt` or `vn`: distinct (v, vt, vn) triples are the vertices.
+    Triples {
+        keys: Vec<[u32; 3]>,
+        /// Triple -> local vertex; alive only while its run is read.
+        map: HashMap<[u32; 3], u32, FastHash>,
+    },
+}
+
+impl Corners {
+    fn len(&self) -> usize {
+        match self {
+            Corners::Positions(p) => p.len(),
+            Corners::Triples { keys, .. } => keys.len(),
+        }
+    }
+
+    fn position(&self, local: usize) -> u32 {
+        match self {
+            Corners::Positions(p) => p[local],
+            Corners::Triples { keys, .. } => keys[local][0],
+        }
+    }
+}
+
+/// A polygon that referred to a position not yet defined: cut into ears once the run's
+/// vertices are gathered.
+struct Deferred {
+    line: usize,
+    corners: Vec<u32>,
+}
+
+/// A run being read.
+struct RunBuilder {
+    name: String,
+    material: Option<usize>,
+    /// Whether a face (of three or more vertices) was read: a run without any is not split
+    /// off when the name or material changes, as in tobj.
+    has_faces: bool,
+    triangles: Vec<[u32; 3]>,
+    corners: Corners,
+    deferred: Vec<Deferred>,
+}
+
+impl RunBuilder {
+    fn new(name: String, material: Option<usize>) -> Self {
+        RunBuilder {
+            name,
+            material,
+            has_faces: false,
+            triangles: Vec::new(),
+            corners: Corners::Positions(Vec::new()),
+            deferred: Vec::new(),
+        }
+    }
+}
+
+/// The reader's state between lines.
+struct Reader<'p, L> {
+    path: &'p Path,
+    dir: PathBuf,
+    load_mtl: L,
+    positions: Vec<Vec3>,
+    /// Per position, once some `v` has colours (white for those without).
+    colors: Vec<Vec3>,
+    /// Whether some `v` line had no colour while others had (one warning).
+    uncoloured: bool,
+    texcoords: Vec<Vec2>,
+    normals: Vec<Vec3>,
+    /// Global position -> the current run's vertex (`NONE` when unused), for
+    /// [`Corners::Positions`]; entries are reset when a run ends.
+    local_of_position: Vec<u32>,
+    /// Positions referred to forward (not yet defined) in the current run -> its vertex.
+    forward: HashMap<u32, u32, FastHash>,
+    /// The lines of `v` statements that are not finite, with their position index.
+    non_finite: Vec<(u32, usize)>,
+    /// Largest positive index of each kind (v, vt, vn) and its line, checked at the end.
+    largest: [(u64, usize); 3],
+    run: RunBuilder,
+    done: Vec<RunBuilder>,
+    faces: usize,
+    /// (count, first line) of skipped `l`, `p` and short faces.
+    dropped: [(usize, usize); 3],
+    first_usemtl: Option<usize>,
+    materials: Vec<tobj::Material>,
+    material_names: HashMap<String, usize>,
+    libraries: Vec<(PathBuf, Option<tobj::LoadError>)>,
+    /// Polygons triangulated as fans (ear clipping failed): count, first line and reason.
+    fanned: usize,
+    first_fanned: Option<(usize, String)>,
+    /// Whether the file had anything but white space.
+    content: bool,
+    // Scratch for one face, reused.
+    face: Vec<u32>,
+    face_positions: Vec<Vec3>,
+    face_polygon: Vec<u32>,
+    face_triangles: Vec<[u32; 3]>,
+}
+
+impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
+    fn new(path: &'p Path, dir: PathBuf, load_mtl: L) -> Self {
+        Reader {
+            path,
+            dir,
+            load_mtl,
+            positions: Vec::new(),
+            colors: Vec::new(),
+            uncoloured: false,
+            texcoords: Vec::new(),
+            normals: Vec::new(),
+            local_of_position: Vec::new(),
+            forward: HashMap::default(),
+            non_finite: Vec::new(),
+            largest: [(0, 0); 3],
+            run: RunBuilder::new(UNNAMED.to_string(), None),
+            done: Vec::new(),
+            faces: 0,
+            dropped: [(0, 0); 3],
+            first_usemtl: None,
+            materials: Vec::new(),
+            material_names: HashMap::new(),
+            libraries: Vec::new(),
+            fanned: 0,
+            first_fanned: None,
+            content: false,
+            face: Vec::new(),
+            face_positions: Vec::new(),
+            face_polygon: Vec::new(),
+            face_triangles: Vec::new(),
+        }
+    }
+
+    fn error(&self, line: usize, message: impl Into<String>) -> Error {
+        Error::input(self.path, Some(format!("line {line}")), message)
+    }
+
+    /// Where the reader is, for the errors of [`grow`].
+    fn at(&self, line: usize) -> At<'p> {
+        At {
+            path: self.path,
+            line,
+            faces: self.faces,
+        }
+    }
+
+    /// Reads one statement (a line, continuations joined) whose first line is `line`.
+    fn statement(&mut self, text: &str, line: usize) -> Result<()> {
+        let mut words = text.split_whitespace();
+        let Some(keyword) = words.next() else {
+            return Ok(());
+        };
+        self.content = true;
+        match keyword {
+            "v" => self.vertex(words, line),
+            "vt" => {
+                let [u, v] = self.numbers(words, "texture coordinate", line)?;
+                let at = self.at(line);
+                grow(&mut self.texcoords, at)?;
+                self.texcoords.push(Vec2::new(u, v));
+                Ok(())
+            }
+            "vn" => {
+                let [x, y, z] = self.numbers(words, "normal", line)?;
+                let at = self.at(line);
+                grow(&mut self.normals, at)?;
+                self.normals.push(Vec3::new(x, y, z));
+                Ok(())
+            }
+            "f" => self.face(words, line),
+            "l" => {
+                self.drop_element(0, line);
+                Ok(())
+            }
+            "p" => {
+                self.drop_element(1, line);
+                Ok(())
+            }
+            "o" | "g" => {
+                let name = rest_after(text, keyword);
+                let name = if name.is_empty() { UNNAMED } else { name };
+                if self.run.has_faces {
+                    self.end_run(RunBuilder::new(name.to_string(), self.run.material))?;
+                } else {
+                    self.run.name = name.to_string();
+                }
+                Ok(())
+            }
+            "mtllib" => {
+                // One file name, which may hold spaces (as tobj reads it).
+                let full = self.dir.join(rest_after(text, keyword));
+                match (self.load_mtl)(&full) {
+                    Ok((materials, names)) => {
+                        let offset = self.materials.len();
+                        self.materials.extend(materials);
+                        for (name, index) in names {
+                            self.material_names.insert(name, index + offset);
+                        }
+                        self.libraries.push((full, None));
+                    }
+                    Err(e) => self.libraries.push((full, Some(e))),
+                }
+                Ok(())
+            }
+            "usemtl" => {
+                let name = rest_after(text, keyword);
+                if name.is_empty() {
+                    return Err(self.error(line, "usemtl needs a material name"));
+                }
+                self.first_usemtl.get_or_insert(line);
+                let material = self.material_names.get(name).copied();
+                if material != self.run.material && self.run.has_faces {
+                    self.end_run(RunBuilder::new(self.run.name.clone(), material))?;
+                } else {
+                    self.run.material = material;
+                }
+                Ok(())
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The first `N` numbers of a `vt` or `vn` statement (more are ignored, as by tobj).
+    fn numbers<'w, const N: usize>(
+        &self,
+        words: impl Iterator<Item = &'w str>,
+        what: &str,
+        line: usize,
+    ) -> Result<[f32; N]> {
+        let mut out = [0.0; N];
+        let mut found = 0;
+        for (k, word) in words.take(N).enumerate() {
+            out[k] = word
+                .parse()
+                .map_err(|_| self.error(line, format!("{what}: '{word}' is not a number")))?;
+            found += 1;
+        }
+        if found < N {
+            return Err(self.error(line, format!("{what}: {N} numbers needed, found {found}")));
+        }
+        Ok(out)
+    }
+
+    /// `v x y z`, optionally followed by `w` (which divides x, y, z) or by `r g b`.
+    fn vertex(&mut self, mut words: std::str::SplitWhitespace, line: usize) -> Result<()> {
+        let [x, y, z] = self.numbers(words.by_ref(), "vertex", line)?;
+        let rest: Vec<&str> = words.collect();
+        let number = |word: &str| {
+            word.parse::<f32>()
+                .map_err(|_| self.error(line, format!("vertex: '{word}' is not a number")))
+        };
+        let mut position = Vec3::new(x, y, z);
+        let mut color = None;
+        match rest[..] {
+            [] => {}
+            [w] => {
+                let w = number(w)?;
+                if w == 0.0 {
+                    return Err(self.error(line, "vertex: w is 0 (positions are divided by w)"));
+                }
+                position = Vec3::new(x / w, y / w, z / w);
+            }
+            [r, g, b] => color = Some(Vec3::new(number(r)?, number(g)?, number(b)?)),
+            _ => {
+                return Err(self.error(
+                    line,
+                    format!(
+                        "vertex: expected x y z, optionally followed by w or by r g b; found {} \
+                         numbers",
+                        3 + rest.len()
+                    ),
+                ));
+            }
+        }
+        let index = self.positions.len();
+        if index >= (NONE - 1) as usize {
+            return Err(self.error(line, "more than 4 billion vertices"));
+        }
+        if !position.is_finite() {
+            self.non_finite.push((index as u32, line));
+        }
+        let at = self.at(line);
+        grow(&mut self.positions, at)?;
+        self.positions.push(position);
+        grow(&mut self.local_of_position, at)?;
+        self.local_of_position.push(NONE);
+        match color {
+            Some(c) => {
+                if self.colors.len() < index {
+                    // Colours start here: the vertices above are white.
+                    self.uncoloured |= index > 0;
+                    self.colors.resize(index, Vec3::ONE);
+                }
+                grow(&mut self.colors, at)?;
+                self.colors.push(c);
+            }
+            None if !self.colors.is_empty() => {
+                self.uncoloured = true;
+                grow(&mut self.colors, at)?;
+                self.colors.push(Vec3::ONE);
+            }
+            None => {}
+        }
+        Ok(())
+    }
+
+    fn drop_element(&mut self, kind: usize, line: usize) {
+        let (count, first) = &mut self.dropped[kind];
+        *count += 1;
+        if *first == 0 {
+            *first = line;
+        }
+    }
+
+    /// `f v1 v2 v3 ...`, each corner `v`, `v/vt`, `v//vn` or `v/vt/vn`.
+    fn face(&mut self, words: std::str::SplitWhitespace, line: usize) -> Result<()> {
+        if words.clone().take(3).count() < 3 {
+            self.drop_element(2, line);
+            return Ok(());
+        }
+        let mut face = std::mem::take(&mut self.face);
+        face.clear();
+        let mut forward = false;
+        for word in words {
+            let [v, vt, vn] = self.corner(word, line)?;
+            forward |= v as usize >= self.positions.len();
+            face.push(self.vertex_of(v, vt, vn, line)?);
+        }
+        self.faces += 1;
+        self.run.has_faces = true;
+        let result = if face.len() == 3 {
+            self.push_triangle([face[0], face[1], face[2]], line)
+        } else if forward {
+            self.run.deferred.push(Deferred {
+                line,
+                corners: face.clone(),
+            });
+            Ok(())
+        } else {
+            self.polygon(&face, line)
+        };
+        self.face = face;
+        result
+    }
+
+    fn push_triangle(&mut self, triangle: [u32; 3], line: usize) -> Result<()> {
+        let at = self.at(line);
+        grow(&mut self.run.triangles, at)?;
+        self.run.triangles.push(triangle);
+        Ok(())
+    }
+
+    /// Cuts a polygon of the current run (its vertices, all with known positions) into ears.
+    fn polygon(&mut self, face: &[u32], line: usize) -> Result<()> {
+        self.face_positions.clear();
+        self.face_polygon.clear();
+        for (k, &local) in face.iter().enumerate() {
+            let position = self.run.corners.position(local as usize);
+            self.face_positions.push(self.positions[position as usize]);
+            self.face_polygon.push(k as u32);
+        }
+        self.face_triangles.clear();
+        if let Err(why) = super::obj::triangulate_polygon(
+            &self.face_positions,
+            &self.face_polygon,
+            &mut self.face_triangles,
+        ) {
+            self.fan(&self.face_polygon.clone(), line, why);
+        }
+        for k in 0..self.face_triangles.len() {
+            let [a, b, c] = self.face_triangles[k];
+            self.push_triangle([face[a as usize], face[b as usize], face[c as usize]], line)?;
+        }
+        Ok(())
+    }
+
+    /// A twisted or strongly non-planar polygon: a fan from its first vertex covers it
+    /// (exactly so for a convex one), though maybe not as its author meant.
+    fn fan(&mut self, polygon: &[u32], line: usize, why: String) {
+        self.fanned += 1;
+        self.first_fanned.get_or_insert((line, why));
+        for k in 1..polygon.len() - 1 {
+            self.face_triangles
+                .push([polygon[0], polygon[k], polygon[k + 1]]);
+        }
+    }
+
+    /// The (v, vt, vn) indices of a corner, 0-based (`NONE` for a missing vt or vn).
+    fn corner(&mut self, word: &str, line: usize) -> Result<[u32; 3]> {
+        const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+        let counts = [
+            self.positions.len(),
+            self.texcoords.len(),
+            self.normals.len(),
+        ];
+        let mut out = [NONE; 3];
+        for (kind, part) in word.split('/').enumerate() {
+            if kind > 2 {
+                return Err(self.error(
+                    line,
+                    format!("face: '{word}' has more than three '/'-separated indices"),
+                ));
+            }
+            if part.is_empty() && kind > 0 {
+                continue; // `v//vn` or `v/vt/`
+            }
+            let Ok(index) = part.parse::<i64>() else {
+                return Err(self.error(line, format!("face: '{part}' in '{word}' is not an index")));
+            };
+            let what = KINDS[kind];
+            if index == 0 {
+                return Err(self.error(
+                    line,
+                    format!(
+                        "face: {what} index 0 in '{word}' is invalid (OBJ indices count from 1, \
+                         or back from -1)"
+                    ),
+                ));
+            }
+            let magnitude = index.unsigned_abs();
+            out[kind] = if index < 0 {
+                if magnitude > counts[kind] as u64 {
+                    return Err(self.error(
+                        line,
+                        format!(
+                            "face: relative {what} index {index} in '{word}' reaches before the \
+                             first {what} ({} defined above this line)",
+                            counts[kind]
+                        ),
+                    ));
+                }
+                (counts[kind] as u64 - magnitude) as u32
+            } else {
+                if magnitude > self.largest[kind].0 {
+                    self.largest[kind] = (magnitude, line);
+                }
+                // Past the largest possible count: refused at the end, as out of range.
+                (magnitude - 1).min(NONE as u64 - 1) as u32
+            };
+        }
+        Ok(out)
+    }
+
+    /// The current run's vertex for a corner, added if new.
+    fn vertex_of(&mut self, v: u32, vt: u32, vn: u32, line: usize) -> Result<u32> {
+        let at = self.at(line);
+        if vt == NONE
+            && vn == NONE
+            && let Corners::Positions(used) = &mut self.run.corners
+        {
+            // The position is the vertex: a table lookup, no hashing.
+            let known = self.local_of_position.get(v as usize).copied();
+            if let Some(local) = known.filter(|&l| l != NONE) {
+                return Ok(local);
+            }
+            if let Some(&local) = self.forward.get(&v) {
+                return Ok(local);
+            }
+            let local = used.len() as u32;
+            grow(used, at)?;
+            used.push(v);
+            match known {
+                Some(_) => self.local_of_position[v as usize] = local,
+                None => {
+                    self.forward.insert(v, local);
+                }
+            }
+            return Ok(local);
+        }
+        if let Corners::Positions(used) = &mut self.run.corners {
+            // The first corner with vt or vn: the vertices so far become (v, -, -) triples.
+            let used = std::mem::take(used);
+            self.reset_position_table(&used);
+            let mut map = HashMap::default();
+            map.try_reserve(used.len())
+                .map_err(|_| at.out_of_memory(used.len() * 16))?;
+            let mut keys = Vec::new();
+            keys.try_reserve_exact(used.len())
+                .map_err(|_| at.out_of_memory(used.len() * 12))?;
+            for (local, &v) in used.iter().enumerate() {
+                keys.push([v, NONE, NONE]);
+                map.insert([v, NONE, NONE], local as u32);
+            }
+            self.run.corners = Corners::Triples { keys, map };
+        }
+        let Corners::Triples { keys, map } = &mut self.run.corners else {
+            unreachable!("made above")
+        };
+        let key = [v, vt, vn];
+        if let Some(&local) = map.get(&key) {
+            return Ok(local);
+        }
+        let local = keys.len() as u32;
+        if map.len() == map.capacity() {
+            let extra = map.capacity().max(64);
+            // hashbrown's buckets: 16 bytes of entry and one control byte, at most 7/8 full.
+            let bytes = extra * 17 * 8 / 7;
+            at.check_growth(bytes)?;
+            map.try_reserve(extra)
+                .map_err(|_| at.out_of_memory(bytes))?;
+        }
+        grow(keys, at)?;
+        keys.push(key);
+        map.insert(key, local);
+        Ok(local)
+    }
+
+    /// Clears the table entries of a run's positions (only those: a table the size of the
+    /// file's positions is not swept once per run).
+    fn reset_position_table(&mut self, used: &[u32]) {
+        for &v in used {
+            if let Some(entry) = self.local_of_position.get_mut(v as usize) {
+                *entry = NONE;
+            }
+        }
+        self.forward.clear();
+    }
+
+    /// Ends the current run (which has faces) and starts `next`.
+    fn end_run(&mut self, next: RunBuilder) -> Result<()> {
+        let mut run = std::mem::replace(&mut self.run, next);
+        match &mut run.corners {
+            Corners::Positions(used) => {
+                let used = std::mem::take(used);
+                self.reset_position_table(&used);
+                run.corners = Corners::Positions(used);
+            }
+            Corners::Triples { map, .. } => *map = HashMap::default(),
+        }
+        self.done.push(run);
+        Ok(())
+    }
+
+    /// Checks the indices against the file's counts, gathers every run's columns and says
+    /// what was skipped.
+    fn finish(mut self, warnings: &mut Vec<String>) -> Result<Obj> {
+        if !self.content {
+            return Err(Error::input(self.path, None, "file is empty"));
+        }
+        const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+        const PLURALS: [&str; 3] = ["vertices", "texture coordinates", "normals"];
+        let counts = [
+            self.positions.len(),
+            self.texcoords.len(),
+            self.normals.len(),
+        ];
+        for kind in 0..3 {
+            let (index, line) = self.largest[kind];
+            if index > counts[kind] as u64 {
+                let what = KINDS[kind];
+                let plural = if counts[kind] == 1 {
+                    what
+                } else {
+                    PLURALS[kind]
+                };
+                return Err(self.error(
+                    line,
+                    format!(
+                        "face: {what} index {index} out of range (the file has {} {plural})",
+                        counts[kind]
+                    ),
+                ));
+            }
+        }
+        // The last run, or tobj's one empty run of a file without faces.
+        if self.run.has_faces || self.done.is_empty() {
+            let last = RunBuilder::new(String::new(), None);
+            self.end_run(last)?;
+        }
+        self.local_of_position = Vec::new();
+        self.forward = HashMap::default();
+        let file = self.path.display().to_string();
+        let what = [
+            "line elements (l) are not rendered",
+            "point elements (p) are not rendered",
+            "faces with fewer than 3 vertices are skipped",
+        ];
+        for (k, &(count, line)) in self.dropped.iter().enumerate() {
+            if count > 0 {
+                warnings.push(format!(
+                    "{file}: {} ({count}, first at line {line})",
+                    what[k]
+                ));
+            }
+        }
+        if let (Some(line), true) = (self.first_usemtl, self.libraries.is_empty()) {
+            warnings.push(format!(
+                "{file}: line {line}: usemtl names a material but the file loads no material \
+                 library (mtllib); using a default grey"
+            ));
+        }
+        if self.uncoloured {
+            warnings.push(format!(
+                "{file}: some vertices have colours (v x y z r g b) and others not; those \
+                 without are white"
+            ));
+        }
+        let builders = std::mem::take(&mut self.done);
+        let mut runs = Vec::with_capacity(builders.len());
+        for builder in builders {
+            runs.push(self.gather(builder)?);
+        }
+        if let Some((line, why)) = self.first_fanned.take() {
+            let fanned = self.fanned;
+            warnings.push(format!(
+                "{file}: {fanned} polygon{} could not be cut into ears and {} triangulated as a \
+                 fan, which may be wrong (first, line {line}: {why})",
+                if fanned == 1 { "" } else { "s" },
+                if fanned == 1 { "was" } else { "were" },
+            ));
+        }
+        Ok(Obj {
+            runs,
+            materials: self.materials,
+            libraries: self.libraries,
+        })
+    }
+
+    /// A run's columns from the file's: its vertices in order of first use.
+    fn gather(&mut self, builder: RunBuilder) -> Result<Run> {
+        let RunBuilder {
+            name,
+            material,
+            mut triangles,
+            corners,
+            deferred,
+            ..
+        } = builder;
+        let n = corners.len();
+        let positions: Vec<Vec3> = collect_fallibly(self.at(0), n, |k| {
+            self.positions[corners.position(k) as usize]
+        })?;
+        if let Some(bad) = positions.iter().position(|p| !p.is_finite()) {
+            let global = corners.position(bad);
+            let line = self
+                .non_finite
+                .iter()
+                .find(|&&(index, _)| index == global)
+                .map_or(0, |&(_, line)| line);
+            let p = positions[bad];
+            return Err(self.error(
+                line,
+                format!("vertex ({}, {}, {}) is not finite", p.x, p.y, p.z),
+            ));
+        }
+        let (normals, uvs) = match &corners {
+            Corners::Positions(_) => (Vec::new(), Vec::new()),
+            Corners::Triples { keys, .. } => {
+                // A column only when every vertex has it, as before (tobj's shorter columns
+                // were dropped).
+                let normals = if keys.iter().all(|k| k[2] != NONE) {
+                    collect_fallibly(self.at(0), n, |k| self.normals[keys[k][2] as usize])?
+                } else {
+                    Vec::new()
+                };
+                // OBJ's v runs up the image; wavetrace's (glTF's) runs down.
+                let uvs = if keys.iter().all(|k| k[1] != NONE) {
+                    collect_fallibly(self.at(0), n, |k| {
+                        let t = self.texcoords[keys[k][1] as usize];
+                        Vec2::new(t.x, 1.0 - t.y)
+                    })?
+                } else {
+                    Vec::new()
+                };
+                (normals, uvs)
+            }
+        };
+        let colors = if self.colors.is_empty() {
+            None
+        } else {
+            Some(collect_fallibly(self.at(0), n, |k| {
+                self.colors[corners.position(k) as usize]
+                    .clamp(Vec3::ZERO, Vec3::ONE)
+                    .extend(1.0)
+            })?)
+        };
+        drop(corners);
+        for polygon in deferred {
+            self.face_triangles.clear();
+            let identity: Vec<u32> = (0..polygon.corners.len() as u32).collect();
+            let corner_positions: Vec<Vec3> = polygon
+                .corners
+                .iter()
+                .map(|&local| positions[local as usize])
+                .collect();
+            if let Err(why) = super::obj::triangulate_polygon(
+                &corner_positions,
+                &identity,
+                &mut self.face_triangles,
+            ) {
+                self.fan(&identity, polygon.line, why);
+            }
+            for &[a, b, c] in &self.face_triangles {
+                let corner = |k: u32| polygon.corners[k as usize];
+                triangles.push([corner(a), corner(b), corner(c)]);
+            }
+        }
+        triangles.shrink_to_fit();
+        Ok(Run {
+            name,
+            material,
+            mesh: Mesh {
+                positions,
+                normals,
+                uvs,
+                indices: triangles,
+            },
+            colors,
+        })
+    }
+}
+
+/// `n` values of `value(k)`, allocated fallibly.
+fn collect_fallibly<T>(at: At, n: usize, value: impl Fn(usize) -> T) -> Result<Vec<T>> {
+    let bytes = n * std::mem::size_of::<T>();
+    at.check_growth(bytes)?;
+    let mut out = Vec::new();
+    out.try_reserve_exact(n)
+        .map_err(|_| at.out_of_memory(bytes))?;
+    out.extend((0..n).map(value));
+    Ok(out)
+}
+
+/// Where the reader is: the file, the line and the faces read, for the errors of memory
+/// that runs out.
+#[derive(Clone, Copy)]
+struct At<'p> {
+    path: &'p Path,
+    line: usize,
+    faces: usize,
+}
+
+impl At<'_> {
+    /// Refuses `bytes` more when the process cannot have them (see [`crate::memory`]).
+    fn check_growth(self, bytes: usize) -> Result<()> {
+        if bytes < CHECKED_GROWTH {
+            return Ok(());
+        }
+        crate::memory::check_fits(
+            self.path,
+            &self.what(),
+            crate::memory::Needed {
+                resident: bytes as u64,
+                address_space: bytes as u64,
+            },
+            crate::memory::available(),
+        )
+    }
+
+    fn what(self) -> String {
+        match self.line {
+            0 => format!("gathering the meshes of its {} faces", self.faces),
+            line => format!(
+                "reading it further (line {line}, {} faces read)",
+                self.faces
+            ),
+        }
+    }
+
+    /// The error of an allocation the system refused.
+    fn out_of_memory(self, bytes: usize) -> Error {
+        Error::input(
+            self.path,
+            None,
+            format!(
+                "the scene does not fit in memory: {} needs {:.2} GiB more, which the system \
+                 refuses; use a smaller model or fewer copies of it",
+                self.what(),
+                bytes as f64 / (1u64 << 30) as f64
+            ),
+        )
+    }
+}
+
+/// Makes room for one more element in a large column: the growth is checked against the
+/// memory the process may still take and reserved fallibly, so that a file too large ends
+/// in the loader's error, not an allocation abort.
+fn grow<T>(column: &mut Vec<T>, at: At) -> Result<()> {
+    if column.len() < column.capacity() {
+        return Ok(());
+    }
+    let extra = column.capacity().max(64);
+    let bytes = extra * std::mem::size_of::<T>();
+    at.check_growth(bytes)?;
+    column
+        .try_reserve_exact(extra)
+        .map_err(|_| at.out_of_memory(bytes))
+}
+
+/// The text of a statement after its keyword, trimmed (names and file names may hold
+/// spaces).
+fn rest_after<'a>(text: &'a str, keyword: &str) -> &'a str {
+    let start = text.trim_start();
+    start[keyword.len()..].trim()
+}
+
+/// A fast, fixed hash for the small integer keys of the vertex maps (the standard SipHash
+/// costs more than the rest of a lookup; nothing here needs protection from chosen keys
+/// beyond a slower load).
+#[derive(Clone, Copy, Default)]
+struct FastHash;
+
+impl std::hash::BuildHasher for FastHash {
+    type Hasher = FastHasher;
+    fn build_hasher(&self) -> FastHasher {
+        FastHasher(0)
+    }
+}
+
+/// Multiply-rotate hashing of 32-bit words (the Fx hash's scheme).
+struct FastHasher(u64);
+
+impl std::hash::Hasher for FastHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(4) {
+            let mut word = [0u8; 4];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.write_u32(u32::from_le_bytes(word));
+        }
+    }
+    fn write_u32(&mut self, word: u32) {
+        self.0 = (self.0.rotate_left(5) ^ word as u64).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    fn write_usize(&mut self, word: usize) {
+        self.write_u32(word as u32);
+        self.write_u32((word as u64 >> 32) as u32);
+    }
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reads `text` as `m.obj` (no material library can load), with its warnings.
+    fn read_text(text: &str) -> Result<(Obj, Vec<String>)> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.obj");
+        std::fs::write(&path, text).unwrap();
+        let mut warnings = Vec::new();
+        let obj = read(
+            &path,
+            |_| Err(tobj::LoadError::OpenFileFailed),
+            &mut warnings,
+        )?;
+        // Warnings name the file by its full path: keep the name only.
+        let prefix = format!("{}: ", path.display());
+        let warnings = warnings
+            .iter()
+            .map(|w| w.replace(&prefix, "m.obj: "))
+            .collect();
+        Ok((obj, warnings))
+    }
+
+    fn error(text: &str) -> String {
+        match read_text(text) {
+            Ok(_) => panic!("{text:?} loaded"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    const SQUARE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                          vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nvn 0 0 -1\n";
+
+    #[test]
+    fn indices_of_every_form_name_the_same_vertices() {
+        // Positive, negative (relative to the lines above), and the forms v/vt, v//vn, v/vt/vn.
+        for face in [
+            "f 1/1/1 2/2/1 3/3/1",
+            "f -4/-4/-2 -3/-3/-2 -2/-2/-2",
+            "f 1/1/1 -3/2/-2 3/-2/1",
+        ] {
+            let (obj, warnings) = read_text(&format!("{SQUARE}{face}\n")).unwrap();
+            assert!(warnings.is_empty(), "{warnings:?}");
+            let mesh = &obj.runs[0].mesh;
+            assert_eq!(mesh.indices, [[0, 1, 2]], "{face}");
+            assert_eq!(
+                mesh.positions,
+                [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0)]
+            );
+            // v is flipped: OBJ's runs up the image.
+            let uvs = [
+                Vec2::new(0.0, 1.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(1.0, 0.0),
+            ];
+            assert_eq!(mesh.uvs, uvs, "{face}");
+            assert_eq!(mesh.normals, [Vec3::Z; 3], "{face}");
+        }
+        let (obj, _) = read_text(&format!("{SQUARE}f 1//2 2//2 3//2\n")).unwrap();
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!((mesh.normals.len(), mesh.uvs.len()), (3, 0));
+        assert_eq!(mesh.normals[0], Vec3::NEG_Z);
+        let (obj, _) = read_text(&format!("{SQUARE}f 1/4 2/3 3/2\n")).unwrap();
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!((mesh.normals.len(), mesh.uvs.len()), (0, 3));
+        assert_eq!(mesh.uvs[0], Vec2::new(0.0, 0.0));
+    }
+
+    #[test]
+    fn vertices_are_shared_within_a_run_and_split_by_their_attributes() {
+        // A quad of two triangles sharing two positions: 4 vertices, in order of first use.
+        let (obj, _) = read_text(&format!("{SQUARE}f 3 1 2\nf 1 3 4\n")).unwrap();
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.indices, [[0, 1, 2], [1, 0, 3]]);
+        assert_eq!(mesh.positions[0], Vec3::new(1.0, 1.0, 0.0));
+        assert_eq!(mesh.positions.len(), 4);
+        // The same position with two normals is two vertices; a corner without vt or vn
+        // after some with them is a vertex of its own, and the run keeps no partial column.
+        let (obj, _) = read_text(&format!("{SQUARE}f 1 2 3\nf 1//1 3//2 4//1\n")).unwrap();
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.indices, [[0, 1, 2], [3, 4, 5]]);
+        assert_eq!(mesh.positions.len(), 6);
+        assert!(mesh.normals.is_empty(), "vertices 0 to 2 have no normal");
+        let (obj, _) = read_text(&format!("{SQUARE}f 1//1 2//1 3//1\nf 1//1 3//1 4//2\n")).unwrap();
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.indices, [[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(mesh.normals[3], Vec3::NEG_Z);
+    }
+
+    #[test]
+    fn objects_groups_and_materials_make_runs_with_their_own_vertices() {
+        let text = format!(
+            "{SQUARE}usemtl red\nf 1 2 3\ng wall\nf 3 4 1\nusemtl blue\nusemtl red\nf 4 1 2\n\
+             usemtl blue\nf 4 2 3\no\ng floor  tiles \no empty\n"
+        );
+        let (obj, warnings) = read_text(&text).unwrap();
+        let runs: Vec<(&str, usize, usize)> = obj
+            .runs
+            .iter()
+            .map(|r| {
+                (
+                    r.name.as_str(),
+                    r.mesh.positions.len(),
+                    r.mesh.indices.len(),
+                )
+            })
+            .collect();
+        // `usemtl` names no known material here (no library): every run has `None`, so a
+        // change of name splits nothing; `g wall` does. A run without faces is no entity.
+        assert_eq!(runs, [("unnamed_object", 3, 1), ("wall", 4, 3)]);
+        assert!(obj.runs.iter().all(|r| r.material.is_none()));
+        // Run-local vertices: `wall` numbers its own from 0 in order of first use.
+        assert_eq!(obj.runs[1].mesh.indices, [[0, 1, 2], [1, 2, 3], [1, 3, 0]]);
+        assert_eq!(obj.runs[1].mesh.positions[0], Vec3::new(1.0, 1.0, 0.0));
+        assert_eq!(
+            warnings,
+            [
+                "m.obj: line 11: usemtl names a material but the file loads no material library \
+              (mtllib); using a default grey"
+            ]
+        );
+        // A file without faces is one empty run (tobj's behaviour), not an error here.
+        let (obj, _) = read_text("v 0 0 0\n").unwrap();
+        assert_eq!(obj.runs.len(), 1);
+        assert!(obj.runs[0].mesh.indices.is_empty());
+    }
+
+    #[test]
+    fn materials_split_runs_when_they_change() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.obj");
+        std::fs::write(
+            &path,
+            format!(
+                "mtllib a.mtl\n{SQUARE}f 1 2 3\nusemtl red\nusemtl red\nf 1 2 3\n\
+                 usemtl blue\nusemtl gone\nf 1 2 3\ng x\nusemtl blue\nf 1 2 3\n"
+            ),
+        )
+        .unwrap();
+        let library = "newmtl red\nKd 1 0 0\nnewmtl blue\nKd 0 0 1\n";
+        let mut warnings = Vec::new();
+        let obj = read(
+            &path,
+            |p| {
+                assert_eq!(p, dir.path().join("a.mtl"));
+                tobj::load_mtl_buf(&mut library.as_bytes())
+            },
+            &mut warnings,
+        )
+        .unwrap();
+        let runs: Vec<(&str, Option<usize>)> = obj
+            .runs
+            .iter()
+            .map(|r| (r.name.as_str(), r.material))
+            .collect();
+        assert_eq!(
+            runs,
+            [
+                ("unnamed_object", None),
+                ("unnamed_object", Some(0)),
+                ("unnamed_object", None),
+                ("x", Some(1)),
+            ]
+        );
+        assert_eq!(obj.materials.len(), 2);
+        assert!(warnings.is_empty(), "{warnings:?}");
+    }
+
+    #[test]
+    fn continuations_lines_points_and_short_faces_with_one_warning_each() {
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 \\\n 3\nl 1 2 3\nl 2 3\n\
+                    f 1 2\np 1\nf\nf 2 \\\n4 \\\n  3\nf 1 2 bad\n";
+        let e = error(text);
+        assert!(
+            e.ends_with("m.obj:line 15: face: 'bad' in 'bad' is not an index"),
+            "{e}"
+        );
+        let text = text.replace("f 1 2 bad\n", "");
+        let (obj, warnings) = read_text(&text).unwrap();
+        assert_eq!(obj.runs[0].mesh.indices, [[0, 1, 2], [1, 3, 2]]);
+        assert_eq!(
+            warnings,
+            [
+                "m.obj: line elements (l) are not rendered (2, first at line 7)",
+                "m.obj: point elements (p) are not rendered (1, first at line 10)",
+                "m.obj: faces with fewer than 3 vertices are skipped (2, first at line 9)",
+            ]
+        );
+    }
+
+    #[test]
+    fn polygons_are_cut_into_ears_also_when_they_refer_forward() {
+        // An L shape (area 3), once with its vertices above, once with them below the face.
+        let vertices = "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\n";
+        let face = "f 1 2 3 4 5 6\n";
+        let (above, _) = read_text(&format!("{vertices}{face}")).unwrap();
+        let (below, _) = read_text(&format!("{face}{vertices}")).unwrap();
+        let mut expected = Vec::new();
+        let polygon: Vec<u32> = (0..6).collect();
+        let positions = &above.runs[0].mesh.positions;
+        super::super::obj::triangulate_polygon(positions, &polygon, &mut expected).unwrap();
+        assert_eq!(expected.len(), 4);
+        assert_eq!(above.runs[0].mesh.indices, expected);
+        assert_eq!(below.runs[0].mesh.indices, expected);
+        assert_eq!(below.runs[0].mesh.positions, *positions);
+        // A forward triangle, and one past the end of the file.
+        let (obj, _) = read_text("f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+        assert_eq!(obj.runs[0].mesh.positions[2], Vec3::Y);
+        let e = error("f 1 2 4\nv 0 0 0\nv 1 0 0\nv 0 1 0\n");
+        assert!(
+            e.contains(":line 1: face: vertex index 4 out of range (the file has 3 vertices)"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn bad_indices_name_line_and_value() {
+        let v = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\n";
+        let error = |f: &str| error(&format!("{v}{f}\n"));
+        let e = error("f 0 1 2");
+        assert!(
+            e.contains(":line 5: face: vertex index 0 in '0' is invalid"),
+            "{e}"
+        );
+        let e = error("f 1 2 4");
+        assert!(
+            e.contains(":line 5: face: vertex index 4 out of range (the file has 3 vertices)"),
+            "{e}"
+        );
+        let e = error("f -1 -2 -4");
+        assert!(e.contains("relative vertex index -4 in '-4' reaches before the first vertex (3 defined above this line)"), "{e}");
+        let e = error("f 1/-2147483648 2/1 3/1");
+        assert!(
+            e.contains("relative texture coordinate index -2147483648"),
+            "{e}"
+        );
+        let e = error("f 1/1/1 2/1 3/1");
+        assert!(
+            e.contains("normal index 1 out of range (the file has 0 normals)"),
+            "{e}"
+        );
+        let e = error("f 1/1 2/1 3/99999999999");
+        assert!(
+            e.contains("texture coordinate index 99999999999 out of range"),
+            "{e}"
+        );
+        let e = error("f 1/1/1/1 2 3");
+        assert!(e.contains("more than three"), "{e}");
+        let e = error("f /1 2 3");
+        assert!(e.contains("face: '' in '/1' is not an index"), "{e}");
+    }
+
+    #[test]
+    fn bad_numbers_name_line_and_value() {
+        let e = error("v 0 0 0\nv 1 x 0\n");
+        assert!(e.ends_with(":line 2: vertex: 'x' is not a number"), "{e}");
+        let e = error("v 0 0 0\nvt 0\n");
+        assert!(
+            e.ends_with(":line 2: texture coordinate: 2 numbers needed, found 1"),
+            "{e}"
+        );
+        let e = error("vn 0 0\n");
+        assert!(
+            e.ends_with(":line 1: normal: 3 numbers needed, found 2"),
+            "{e}"
+        );
+        let e = error("v 1 2 3 0\n");
+        assert!(
+            e.ends_with(":line 1: vertex: w is 0 (positions are divided by w)"),
+            "{e}"
+        );
+        let e = error("v 1 2 3 4 5\n");
+        assert!(e.contains("found 5 numbers"), "{e}");
+        let e = error("v 1 2 3 0.5 0.5 red\n");
+        assert!(e.ends_with("vertex: 'red' is not a number"), "{e}");
+        let e = error("usemtl \n");
+        assert!(e.ends_with(":line 1: usemtl needs a material name"), "{e}");
+        // Non-finite vertices are refused where a face uses them, naming their line.
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1e39 0\nv nan 0 0\nf 1 2 3\n";
+        let e = error(text);
+        assert!(
+            e.ends_with(":line 3: vertex (0, inf, 0) is not finite"),
+            "{e}"
+        );
+        assert!(read_text(&text.replace("f 1 2 3", "f 1 2 -1")).is_err());
+        assert!(
+            read_text(&text.replace("f 1 2 3", "f 1 2 1")).is_ok(),
+            "unused: no error"
+        );
+        // `w` divides.
+        let (obj, _) = read_text("v 2 4 6 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(obj.runs[0].mesh.positions[0], Vec3::new(1.0, 2.0, 3.0));
+        assert!(error("  \n\n").ends_with("file is empty"));
+        let e = error("v 0 0 0\nv \u{0}\u{ff}");
+        assert!(e.contains("line 2"), "{e}");
+    }
+
+    #[test]
+    fn vertex_colours_where_some_vertices_have_none_are_white() {
+        let text = "v 0 0 0\nv 1 0 0 1 0 0\nv 0 1 0 0 2 0\nv 1 1 0\nf 1 2 3\nf 4 3 2\n";
+        let (obj, warnings) = read_text(text).unwrap();
+        let colors = obj.runs[0].colors.as_ref().unwrap();
+        let expected = [Vec3::ONE, Vec3::X, Vec3::Y, Vec3::ONE].map(|c| c.extend(1.0));
+        assert_eq!(colors, &expected, "clamped to [0, 1]");
+        assert_eq!(
+            warnings,
+            [
+                "m.obj: some vertices have colours (v x y z r g b) and others not; those without \
+              are white"
+            ]
+        );
+        let (obj, _) = read_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        assert!(obj.runs[0].colors.is_none());
+    }
+}
