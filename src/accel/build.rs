@@ -40,6 +40,22 @@ pub struct Node4 {
     pub count: [u32; 4],
 }
 
+impl Node4 {
+    /// A node whose four lanes are unused (empty boxes, no children), to be filled in.
+    const EMPTY: Node4 = Node4 {
+        bounds: [
+            Vec4::INFINITY,
+            Vec4::INFINITY,
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+            Vec4::NEG_INFINITY,
+            Vec4::NEG_INFINITY,
+        ],
+        child: [u32::MAX; 4],
+        count: [0; 4],
+    };
+}
+
 /// The 4-wide BVH. An empty scene has no nodes, and every ray misses.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh4 {
@@ -70,10 +86,28 @@ impl Bvh4 {
     }
 }
 
-/// Builds the BVH over `shapes` (primitives, or the world boxes of instances). Returns it with the map from BVH slots to shapes: slot `i`
-/// holds `shapes[order[i]]`. `None` if the tree is deeper than [`MAX_DEPTH`] (only
-/// degenerate geometry does that).
+/// Scenes with more primitives are built in chunks of at most this many (see
+/// [`build_bvh_in_chunks_of`]), so that obvhs's scratch (about 140 bytes per primitive:
+/// binary nodes, its two node lists, Morton codes) is bounded by the chunk instead of
+/// growing with the scene: 2^19 primitives is about 70 MiB of scratch.
+const CHUNK_SIZE: usize = 1 << 19;
+
+/// Builds the BVH over `shapes` (primitives, or the world boxes of instances). Returns it
+/// with the map from BVH slots to shapes: slot `i` holds `shapes[order[i]]`. `None` if the
+/// tree is deeper than [`MAX_DEPTH`] (only degenerate geometry does that).
 pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> {
+    build_bvh_in_chunks_of(shapes, CHUNK_SIZE)
+}
+
+/// [`build_bvh`] with chunks of at most `chunk_size` primitives: a scene that fits in one
+/// is built whole; a larger one is ordered by the Morton codes of its boxes' centres, cut
+/// into spatially coherent runs of at most `chunk_size` (see [`chunk_ranges`]), each built
+/// and collapsed on its own (obvhs's scratch freed in between), and joined under a small
+/// tree built over the chunks' boxes. The result is one ordinary [`Bvh4`].
+pub(super) fn build_bvh_in_chunks_of<T: obvhs::Boundable>(
+    shapes: &[T],
+    chunk_size: usize,
+) -> Option<(Bvh4, Vec<u32>)> {
     let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
         (BvhBuildParams::very_slow_build(), 1)
     } else {
@@ -83,30 +117,206 @@ pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> 
         };
         (params, MAX_LEAF_SIZE)
     };
-    let bvh2 = build_bvh2(shapes, params);
-    crate::memory::trace_phase("binary bvh");
-    let mut bvh = Bvh4 {
+    let mut bvh = Bvh4::default();
+    let mut order = Vec::with_capacity(shapes.len());
+    if shapes.len() <= chunk_size.max(1) {
+        let bvh2 = build_bvh2(shapes, params);
+        crate::memory::trace_phase("binary bvh");
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).
-        nodes: Vec::with_capacity(bvh2.nodes.len() / 5 + 1),
-        depth: 0,
-        leaf_lanes: Vec::new(),
-    };
-    let mut order = Vec::with_capacity(shapes.len());
-    if !shapes.is_empty() {
-        let tree = BinaryTree {
-            bvh2: &bvh2,
-            max_leaf_size,
-            node_cost: params.collapse_traversal_cost,
-        };
-        bvh.depth = tree.collapse_in_parallel(&mut bvh.nodes, &mut order);
-        bvh.leaf_lanes = bvh
-            .nodes
-            .par_iter()
-            .map(|node| (0..4).fold(0, |m, k| m | u8::from(node.count[k] != 0) << k))
-            .collect();
+        bvh.nodes = Vec::with_capacity(bvh2.nodes.len() / 5 + 1);
+        if !shapes.is_empty() {
+            let tree = BinaryTree {
+                bvh2: &bvh2,
+                max_leaf_size,
+                node_cost: params.collapse_traversal_cost,
+            };
+            bvh.depth = tree.collapse_in_parallel(&mut bvh.nodes, &mut order);
+        }
+    } else {
+        let chunks = build_chunks(shapes, chunk_size, params, max_leaf_size);
+        crate::memory::trace_phase("binary bvh");
+        bvh.depth = join_chunks(chunks, &mut bvh.nodes, &mut order);
     }
+    bvh.leaf_lanes = bvh
+        .nodes
+        .par_iter()
+        .map(|node| (0..4).fold(0, |m, k| m | u8::from(node.count[k] != 0) << k))
+        .collect();
     (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
+}
+
+/// One chunk of a chunked build: its tree collapsed on its own, and the box around it.
+struct Chunk {
+    collapsed: Collapsed,
+    bounds: Aabb,
+}
+
+/// The chunks of `shapes` (see [`chunk_ranges`]), each built and collapsed in turn: only one
+/// chunk's binary tree and boxes are alive at a time.
+fn build_chunks<T: obvhs::Boundable>(
+    shapes: &[T],
+    chunk_size: usize,
+    params: BvhBuildParams,
+    max_leaf_size: u32,
+) -> Vec<Chunk> {
+    let centroid_bounds = shapes
+        .par_iter()
+        .map(|shape| {
+            let centre = shape.aabb().center();
+            Aabb::new(centre, centre)
+        })
+        .reduce(Aabb::empty, |a, b| a.union(&b));
+    // Extent 0 on an axis (a flat scene) would divide by zero: every code is 0 there.
+    let extent = centroid_bounds.diagonal();
+    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), extent.recip(), Vec3A::ZERO);
+    // Codes with the primitive's index, so that equal codes sort the same on every run.
+    let mut keys: Vec<(u64, u32)> = shapes
+        .par_iter()
+        .enumerate()
+        .map(|(i, shape)| {
+            let unit = (shape.aabb().center() - centroid_bounds.min) * scale;
+            (morton_code(unit), i as u32)
+        })
+        .collect();
+    keys.par_sort_unstable();
+    let mut ranges = Vec::new();
+    chunk_ranges(&keys, 0..keys.len(), chunk_size, &mut ranges);
+    let sorted: Vec<u32> = keys.iter().map(|&(_, i)| i).collect();
+    drop(keys);
+    ranges
+        .into_iter()
+        .map(|range| {
+            let indices = sorted[range].to_vec();
+            let boxes: Vec<Aabb> = indices
+                .par_iter()
+                .map(|&i| shapes[i as usize].aabb())
+                .collect();
+            let bvh2 = build_bvh2(&boxes, params);
+            drop(boxes);
+            let tree = BinaryTree {
+                bvh2: &bvh2,
+                max_leaf_size,
+                node_cost: params.collapse_traversal_cost,
+            };
+            let mut collapsed = Collapsed::default();
+            collapsed.depth = tree.collapse_in_parallel(&mut collapsed.nodes, &mut collapsed.order);
+            // The chunk's slots name its primitives by their place in the chunk.
+            collapsed
+                .order
+                .par_iter_mut()
+                .for_each(|i| *i = indices[*i as usize]);
+            Chunk {
+                collapsed,
+                bounds: *bvh2.nodes[0].aabb(),
+            }
+        })
+        .collect()
+}
+
+/// The 63-bit Morton code of a point of the unit cube (21 bits per axis).
+fn morton_code(unit: Vec3A) -> u64 {
+    let cells = (1u32 << 21) as f32;
+    let cell = |x: f32| ((x * cells) as u32).min((1 << 21) - 1);
+    obvhs::ploc::morton::morton_encode_u64(cell(unit.x), cell(unit.y), cell(unit.z))
+}
+
+/// Cuts the sorted `keys[range]` into runs of at most `chunk_size`, pushed to `ranges` in
+/// order: a run too long is split where the highest bit in which its codes differ turns
+/// from 0 to 1, which halves the Morton cell around it (so a chunk is a box of space, as a
+/// node near the top of a Morton-ordered tree would be), or in the middle if its codes are
+/// all equal.
+pub(super) fn chunk_ranges(
+    keys: &[(u64, u32)],
+    range: std::ops::Range<usize>,
+    chunk_size: usize,
+    ranges: &mut Vec<std::ops::Range<usize>>,
+) {
+    if range.len() <= chunk_size {
+        ranges.push(range);
+        return;
+    }
+    let (first, last) = (keys[range.start].0, keys[range.end - 1].0);
+    let split = if first == last {
+        range.start + range.len() / 2
+    } else {
+        let bit = 1u64 << (63 - (first ^ last).leading_zeros());
+        range.start + keys[range.clone()].partition_point(|&(code, _)| code & bit == 0)
+    };
+    chunk_ranges(keys, range.start..split, chunk_size, ranges);
+    chunk_ranges(keys, split..range.end, chunk_size, ranges);
+}
+
+/// Joins the chunks under a tree built over their boxes (one chunk per leaf, obvhs's
+/// slowest and best build: there are few), appending the whole tree to `nodes` and `order`
+/// in depth-first order. Returns its depth.
+fn join_chunks(chunks: Vec<Chunk>, nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
+    let boxes: Vec<Aabb> = chunks.iter().map(|chunk| chunk.bounds).collect();
+    let top = build_bvh2(&boxes, BvhBuildParams::very_slow_build());
+    nodes.reserve(
+        chunks
+            .iter()
+            .map(|c| c.collapsed.nodes.len())
+            .sum::<usize>()
+            + chunks.len(),
+    );
+    let mut chunks: Vec<Option<Collapsed>> =
+        chunks.into_iter().map(|c| Some(c.collapsed)).collect();
+    collapse_top(&top, &[0], &mut chunks, nodes, order)
+}
+
+/// Appends the 4-wide node over the top tree's nodes `children` (opened, widest first, until
+/// there are four lanes or only chunks are left), then what is below each lane: a top inner
+/// node recursively, or a chunk spliced in whole (its root node is the lane's child).
+/// Returns the depth below and including the node.
+fn collapse_top(
+    top: &Bvh2,
+    children: &[u32],
+    chunks: &mut [Option<Collapsed>],
+    nodes: &mut Vec<Node4>,
+    order: &mut Vec<u32>,
+) -> usize {
+    let is_leaf = |n: u32| u32::from(top.nodes[n as usize].is_leaf());
+    let mut lanes = Lanes::default();
+    children.iter().for_each(|&n| lanes.push((n, is_leaf(n))));
+    while lanes.len < 4 {
+        let widest = lanes
+            .as_slice()
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, leaf))| *leaf == 0)
+            .max_by(|a, b| {
+                let area = |n: u32| top.nodes[n as usize].aabb().half_area();
+                area(a.1.0).total_cmp(&area(b.1.0))
+            });
+        let Some((k, &(n, _))) = widest else { break };
+        let first = top.nodes[n as usize].first_index;
+        lanes.replace_with_two(k, (first, is_leaf(first)), (first + 1, is_leaf(first + 1)));
+    }
+    let index = nodes.len();
+    nodes.push(Node4::EMPTY);
+    let mut depth = 1;
+    for (k, &(n, leaf)) in lanes.as_slice().iter().enumerate() {
+        let node = &top.nodes[n as usize];
+        let aabb = node.aabb();
+        for axis in 0..3 {
+            nodes[index].bounds[axis][k] = aabb.min[axis];
+            nodes[index].bounds[axis + 3][k] = aabb.max[axis];
+        }
+        nodes[index].child[k] = nodes.len() as u32;
+        let below = if leaf == 1 {
+            let chunk = top.primitive_indices[node.first_index as usize] as usize;
+            let collapsed = chunks[chunk]
+                .take()
+                .expect("each chunk is one leaf of the top tree");
+            collapsed.splice_into(nodes, order)
+        } else {
+            let first = node.first_index;
+            collapse_top(top, &[first, first + 1], chunks, nodes, order)
+        };
+        depth = depth.max(1 + below);
+    }
+    depth
 }
 
 /// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
@@ -114,12 +324,14 @@ pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> 
 /// replaces) and without the validation that build runs with debug assertions on: that one panics on
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
-pub(super) fn build_bvh2<T: obvhs::Boundable>(shapes: &[T], params: BvhBuildParams) -> Bvh2 {
-    let indices = (0..shapes.len() as u32).collect();
+pub(super) fn build_bvh2<T: obvhs::Boundable>(boxes: &[T], params: BvhBuildParams) -> Bvh2 {
+    // obvhs's leaves hold their primitive's index into `indices` as its place there, so
+    // only the identity gives trees whose leaves can be read through `primitive_indices`.
+    let indices = (0..boxes.len() as u32).collect();
     // The node array is first written by all threads: PLOC's merge loop fills it on one
     // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone
     // (build 240 -> 215 ms there).
-    let node_count = (2 * shapes.len()).saturating_sub(1);
+    let node_count = (2 * boxes.len()).saturating_sub(1);
     let mut bvh2 = Bvh2 {
         nodes: (0..node_count)
             .into_par_iter()
@@ -127,10 +339,10 @@ pub(super) fn build_bvh2<T: obvhs::Boundable>(shapes: &[T], params: BvhBuildPara
             .collect(),
         ..Bvh2::default()
     };
-    obvhs::ploc::PlocBuilder::with_capacity(shapes.len()).build_with_bvh(
+    obvhs::ploc::PlocBuilder::with_capacity(boxes.len()).build_with_bvh(
         &mut bvh2,
         params.ploc_search_distance,
-        shapes,
+        boxes,
         indices,
         params.sort_precision,
         params.search_depth_threshold,
@@ -309,18 +521,7 @@ impl BinaryTree<'_> {
         let bvh2 = &self.bvh2.nodes;
         let lanes = self.lanes(children);
         let index = nodes.len();
-        nodes.push(Node4 {
-            bounds: [
-                Vec4::INFINITY,
-                Vec4::INFINITY,
-                Vec4::INFINITY,
-                Vec4::NEG_INFINITY,
-                Vec4::NEG_INFINITY,
-                Vec4::NEG_INFINITY,
-            ],
-            child: [u32::MAX; 4],
-            count: [0; 4],
-        });
+        nodes.push(Node4::EMPTY);
         let mut depth = 1;
         for (k, &(n, leaf_size)) in lanes.as_slice().iter().enumerate() {
             let aabb = bvh2[n as usize].aabb();

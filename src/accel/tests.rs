@@ -15,8 +15,15 @@ use obvhs::BvhBuildParams;
 
 /// Random triangles and spheres, already in BVH order.
 fn random_scene(n: u32) -> (Vec<Shape>, Bvh4) {
+    let shapes = random_shapes(n);
+    let (bvh, order) = build_bvh(&shapes).unwrap();
+    (order.iter().map(|&i| shapes[i as usize]).collect(), bvh)
+}
+
+/// Random triangles and one sphere in seven, in a 10-unit cube.
+fn random_shapes(n: u32) -> Vec<Shape> {
     let u = |i: u32, d: u32| uniform(path_key(1, i, 0), 0, d);
-    let shapes: Vec<Shape> = (0..n)
+    (0..n)
         .map(|i| {
             let c = Vec3A::new(u(i, 0), u(i, 1), u(i, 2)) * 10.0;
             if i % 7 == 0 {
@@ -29,9 +36,7 @@ fn random_scene(n: u32) -> (Vec<Shape>, Bvh4) {
                 Shape::Triangle(TriangleGeom::new(c, c + e(4), c + e(7)))
             }
         })
-        .collect();
-    let (bvh, order) = build_bvh(&shapes).unwrap();
-    (order.iter().map(|&i| shapes[i as usize]).collect(), bvh)
+        .collect()
 }
 
 /// Ray `i` of a random set `set` through the scenes of [`random_scene`]: half of them
@@ -463,4 +468,161 @@ fn empty_and_single_primitive_scenes() {
         |s, t| one[s as usize].intersect_t(Vec3A::ZERO, Vec3A::X, t),
     );
     assert_eq!(hit, Some((0, 2.0)));
+}
+
+/// Checks the tree `bvh` over `shapes` (input order), whose slot `i` holds
+/// `shapes[order[i]]`: every primitive in exactly one leaf, every node reached once and after
+/// its parent (depth-first order), every lane's box around what is below it (the child
+/// node's boxes, or the leaf's primitives), `leaf_lanes` and `depth` as the nodes say.
+fn check_tree(bvh: &Bvh4, order: &[u32], shapes: &[Shape]) {
+    use obvhs::Boundable;
+    let mut sorted = order.to_vec();
+    sorted.sort_unstable();
+    assert!(
+        sorted.iter().copied().eq(0..shapes.len() as u32),
+        "a permutation"
+    );
+    let lane_box = |node: &Node4, k: usize| {
+        let b = &node.bounds;
+        obvhs::aabb::Aabb::new(
+            Vec3A::new(b[0][k], b[1][k], b[2][k]),
+            Vec3A::new(b[3][k], b[4][k], b[5][k]),
+        )
+    };
+    let inside = |inner: &obvhs::aabb::Aabb, outer: &obvhs::aabb::Aabb| {
+        inner.min.cmpge(outer.min).all() && inner.max.cmple(outer.max).all()
+    };
+    let mut slot_seen = vec![false; shapes.len()];
+    let mut node_seen = vec![false; bvh.nodes.len()];
+    // (node, its parent lane's box, its depth)
+    let mut stack = vec![(0usize, None, 1usize)];
+    let mut depth = 0;
+    while let Some((n, parent_box, level)) = stack.pop() {
+        assert!(!node_seen[n], "node {n} reached once");
+        node_seen[n] = true;
+        depth = depth.max(level);
+        let node = &bvh.nodes[n];
+        let lanes = (0..4).fold(0, |m, k| m | u8::from(node.count[k] != 0) << k);
+        assert_eq!(bvh.leaf_lanes[n], lanes, "node {n}");
+        for k in 0..4 {
+            let b = lane_box(node, k);
+            if node.child[k] == u32::MAX {
+                assert!(
+                    b.min.cmpgt(b.max).all(),
+                    "an unused lane of node {n} is empty"
+                );
+                continue;
+            }
+            if let Some(parent) = &parent_box {
+                assert!(
+                    inside(&b, parent),
+                    "node {n} lane {k} inside its parent's box"
+                );
+            }
+            if node.count[k] == 0 {
+                let child = node.child[k] as usize;
+                assert!(child > n, "depth-first: node {child} after its parent {n}");
+                stack.push((child, Some(b), level + 1));
+            } else {
+                let first = node.child[k] as usize;
+                for slot in first..first + node.count[k] as usize {
+                    assert!(!slot_seen[slot], "slot {slot} in one leaf");
+                    slot_seen[slot] = true;
+                    let prim_box = shapes[order[slot] as usize].aabb();
+                    assert!(inside(&prim_box, &b), "slot {slot} inside its leaf's box");
+                }
+            }
+        }
+    }
+    assert!(slot_seen.iter().all(|&s| s), "every slot in a leaf");
+    assert!(node_seen.iter().all(|&s| s), "every node reached");
+    assert_eq!(bvh.depth, depth);
+    assert!(bvh.depth <= MAX_DEPTH);
+}
+
+/// The closest hit through `bvh` (slot order `order`) as (input index, distance).
+fn closest_through(
+    bvh: &Bvh4,
+    order: &[u32],
+    shapes: &[Shape],
+    (origin, direction, t_max): (Vec3A, Vec3A, f32),
+) -> Option<(u32, f32)> {
+    bvh.closest_hit(
+        &mut TraversalStack::default(),
+        origin,
+        direction,
+        t_max,
+        |s, t| shapes[order[s as usize] as usize].intersect_t(origin, direction, t),
+    )
+    .map(|(slot, t)| (order[slot as usize], t))
+}
+
+#[test]
+fn chunked_builds_find_the_hits_of_the_whole_build_and_of_brute_force() {
+    // Leaves of one (a small scene) and of up to four, each cut into several chunks; and a
+    // flat grid (the centres' box has no height, so one Morton axis is constant).
+    let grid: Vec<Shape> = (0..5000u32)
+        .map(|i| {
+            let (x, y) = ((i / 2 % 50) as f32, (i / 2 / 50) as f32);
+            let v = |dx: f32, dy: f32| Vec3A::new(x + dx, y + dy, 0.0) * 0.2;
+            if i % 2 == 0 {
+                Shape::Triangle(TriangleGeom::new(v(0.0, 0.0), v(1.0, 0.0), v(0.0, 1.0)))
+            } else {
+                Shape::Triangle(TriangleGeom::new(v(1.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)))
+            }
+        })
+        .collect();
+    for (name, shapes, chunk_size) in [
+        ("3000 random", random_shapes(3000), 500),
+        ("9000 random", random_shapes(9000), 1000),
+        ("5000 in a plane", grid, 700),
+    ] {
+        let (whole, whole_order) = build_bvh_in_chunks_of(&shapes, usize::MAX).unwrap();
+        let (chunked, order) = build_bvh_in_chunks_of(&shapes, chunk_size).unwrap();
+        check_tree(&whole, &whole_order, &shapes);
+        check_tree(&chunked, &order, &shapes);
+        assert!(
+            chunked.nodes != whole.nodes,
+            "{name}: the chunked tree is another tree"
+        );
+        let mut hits = 0;
+        for i in 0..3000 {
+            let mut ray = random_ray(11, i);
+            if name.contains("plane") {
+                // From above the plane, down through it.
+                ray.0.z = 1.0 + ray.0.z;
+                ray.1.z = -ray.1.z.abs() - 0.1;
+                ray.1 = ray.1.normalize();
+            }
+            let brute = brute_force_closest(&shapes, ray.0, ray.1, ray.2);
+            let chunked_hit = closest_through(&chunked, &order, &shapes, ray);
+            assert_eq!(chunked_hit, brute, "{name}, ray {i}");
+            assert_eq!(closest_through(&whole, &whole_order, &shapes, ray), brute);
+            hits += brute.is_some() as u32;
+        }
+        assert!(hits > 300, "{name}: the test rays hit often enough: {hits}");
+    }
+}
+
+#[test]
+fn chunk_ranges_cut_morton_cells_into_runs_of_at_most_the_chunk_size() {
+    // Codes 0..1000 (sorted), then 300 equal codes: the cuts fall where a high bit turns
+    // on, and the equal run is halved.
+    let mut keys: Vec<(u64, u32)> = (0..1000u64).map(|c| (c, c as u32)).collect();
+    keys.extend((1000..1300u32).map(|i| (5000, i)));
+    let mut ranges = Vec::new();
+    chunk_ranges(&keys, 0..keys.len(), 100, &mut ranges);
+    assert_eq!(ranges.first().unwrap().start, 0);
+    assert_eq!(ranges.last().unwrap().end, keys.len());
+    for pair in ranges.windows(2) {
+        assert_eq!(pair[0].end, pair[1].start, "contiguous");
+    }
+    assert!(ranges.iter().all(|r| !r.is_empty() && r.len() <= 100));
+    // 0..512 splits from 512..1000 first (bit 9), then into cells of 64 codes.
+    assert_eq!(ranges[0], 0..64);
+    assert!(ranges.contains(&(448..512)) && ranges.contains(&(512..576)));
+    // The equal codes: 300 -> 150 + 150 -> 75 each.
+    let equal: Vec<_> = ranges.iter().filter(|r| r.start >= 1000).collect();
+    assert_eq!(equal.len(), 4);
+    assert!(equal.iter().all(|r| r.len() == 75));
 }
