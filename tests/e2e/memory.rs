@@ -64,27 +64,29 @@ fn a_scene_too_large_for_the_address_space_is_refused_with_a_clear_error() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
 }
 
-/// An OBJ too large for the memory left is refused with a clear error: 2 million faces over
-/// three vertices (16 MB of text). Under `ulimit -v` 400 MiB the parse used to end in an
-/// allocation abort (exit 134: tobj's face list of 218 MB); the streaming reader now takes
-/// 24 MB for it and flattening refuses the render scene. Under 100 MiB the reader itself
-/// runs out: a growth of its columns is refused with the same error, not an abort.
+/// An OBJ too large for the memory left is refused with a clear error. 2 million faces over
+/// three vertices (16 MB of text) under `ulimit -v` 400 MiB used to end in an allocation
+/// abort in the parse (exit 134: tobj's face list of 218 MB); the streaming reader takes
+/// 24 MB for them and flattening refuses the render scene. 6 million faces under 64 MiB (the
+/// process starts in about 20): the reader's columns (72 MB of triangles) cannot grow, and
+/// the loader refuses the file (its size, or a growth of the columns) with the same error,
+/// not an abort.
 #[test]
 fn an_obj_too_large_to_parse_is_refused_with_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("many-faces.obj");
-    let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
-    text.push_str(&"f 1 2 3\n".repeat(2_000_000));
-    std::fs::write(&path, text).unwrap();
     let output = dir.path().join("many-faces.png");
-    for (limit_mib, what) in [
-        (400, "its render scene ("),
-        (100, "reading it further (line "),
+    for (faces, limit_mib, what) in [
+        (2_000_000, 400, "its render scene ("),
+        (6_000_000, 64, "reading"),
     ] {
+        let path = dir.path().join("many-faces.obj");
+        let mut text = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+        text.push_str(&"f 1 2 3\n".repeat(faces));
+        std::fs::write(&path, text).unwrap();
         let out = render_limited(limit_mib << 10, &path, &output);
         let expected = ["many-faces.obj", "does not fit in memory", what];
         if let Err(e) = check_failure(&out, 1, &expected) {
-            panic!("ulimit -v {limit_mib} MiB: {e}");
+            panic!("{faces} faces, ulimit -v {limit_mib} MiB: {e}");
         }
         assert!(!output.exists(), "no image is written");
     }
