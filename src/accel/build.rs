@@ -1,6 +1,8 @@
 //! The BVH build: obvhs's binary tree (PLOC + reinsertion) over the primitives' boxes,
 //! collapsed into the 4-wide [`Bvh4`] that the traversals walk; leaves are contiguous runs
-//! of slots, and `order` maps slots back to the input primitives.
+//! of slots, and `order` maps slots back to the input primitives. Large scenes are built in
+//! spatial chunks joined under a small top tree, so that the build's scratch is bounded by
+//! the chunk, not the scene.
 
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
