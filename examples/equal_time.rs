@@ -162,6 +162,11 @@ fn main() -> anyhow::Result<()> {
             e.relative_mse,
             100.0 * e.top_percent_share
         );
+        let (m, r) = (image.mean(), reference.mean());
+        println!(
+            "seed {seed}: image mean {:.5} {:.5} {:.5}, reference mean {:.5} {:.5} {:.5}",
+            m.x, m.y, m.z, r.x, r.y, r.z
+        );
         if let Some(path) = &args.write {
             write_image(path, &film, 0.0)?;
         }

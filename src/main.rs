@@ -113,7 +113,7 @@ struct RenderArgs {
     no_mis: bool,
     /// Light paths per pixel and pass that find caustics seen directly (light -> mirror or
     /// glass -> diffuse surface), combined with the path tracer by multiple importance
-    /// sampling (default 1); 0 turns them off. Only scenes with a mirror or smooth glass and
+    /// sampling (default 0.25); 0 turns them off. Only scenes with a mirror or smooth glass and
     /// an area, point or spot light trace them.
     #[arg(long, value_parser = parse_caustic_paths)]
     caustic_paths: Option<f32>,

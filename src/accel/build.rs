@@ -1,6 +1,8 @@
 //! The BVH build: obvhs's binary tree (PLOC + reinsertion) over the primitives' boxes,
 //! collapsed into the 4-wide [`Bvh4`] that the traversals walk; leaves are contiguous runs
-//! of slots, and `order` maps slots back to the input primitives.
+//! of slots, and `order` maps slots back to the input primitives. Large scenes are built in
+//! spatial chunks joined under a small top tree, so that the build's scratch is bounded by
+//! the chunk, not the scene.
 
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
@@ -89,8 +91,11 @@ impl Bvh4 {
 /// Scenes with more primitives are built in chunks of at most this many (see
 /// [`build_bvh_in_chunks_of`]), so that obvhs's scratch (about 140 bytes per primitive:
 /// binary nodes, its two node lists, Morton codes) is bounded by the chunk instead of
-/// growing with the scene: 2^19 primitives is about 70 MiB of scratch.
-const CHUNK_SIZE: usize = 1 << 19;
+/// growing with the scene: 2^23 primitives is about 1.1 GiB of scratch. Chunks cost speed
+/// (chunks of 2^19 on a 1.3M-triangle scene: 23% more instructions per ray, a 52% longer
+/// build; docs/performance.md), so only scenes this large, where the build's memory decides
+/// whether they fit, take them.
+const CHUNK_SIZE: usize = 1 << 23;
 
 /// Builds the BVH over `shapes` (primitives, or the world boxes of instances). Returns it
 /// with the map from BVH slots to shapes: slot `i` holds `shapes[order[i]]`. `None` if the

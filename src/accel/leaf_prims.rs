@@ -34,6 +34,14 @@ pub struct LeafPrim {
     d: Vec4,
 }
 
+/// The BVH build reads a record's box from its shape, so the records made in flattening
+/// order serve the build without an array of shapes beside them.
+impl obvhs::Boundable for LeafPrim {
+    fn aabb(&self) -> obvhs::aabb::Aabb {
+        obvhs::Boundable::aabb(&self.shape())
+    }
+}
+
 impl LeafPrim {
     /// The record of no primitive: its determinant is zero, so no ray hits it.
     const NONE: LeafPrim = LeafPrim {
@@ -59,6 +67,11 @@ impl LeafPrim {
                 d: Vec4::ZERO,
             },
         }
+    }
+
+    /// Whether the record holds a triangle (else a sphere).
+    pub fn is_triangle(&self) -> bool {
+        self.a.w != SPHERE_TAG
     }
 
     /// The primitive this record holds.

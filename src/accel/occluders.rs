@@ -34,6 +34,24 @@ pub struct Occluders {
     pub leaf_prims: Vec<LeafPrim>,
 }
 
+/// [`occluders`] of the primitives recorded in `prims` (in any order): their shapes are made
+/// only when the scene is small enough to check.
+pub fn occluders_of_records(prims: &[LeafPrim], delta_lights: &[DeltaLight]) -> Option<Occluders> {
+    let triangles = prims.iter().filter(|p| p.is_triangle()).count();
+    if too_many_checks(triangles, prims.len(), delta_lights.len()) {
+        return None;
+    }
+    let shapes: Vec<Shape> = prims.iter().map(LeafPrim::shape).collect();
+    occluders(&shapes, delta_lights)
+}
+
+/// Whether checking `triangles` triangles against every point of a scene of `primitives`
+/// primitives and `lights` punctual lights would take more than [`MAX_CHECKS`] tests.
+fn too_many_checks(triangles: usize, primitives: usize, lights: usize) -> bool {
+    let point_count = 3 * triangles + (primitives - triangles) + lights;
+    triangles.saturating_mul(point_count) > MAX_CHECKS
+}
+
 /// The occluders of the scene made of `shapes` and the punctual lights `delta_lights`, or
 /// `None` when no triangle bounds the scene (or the scene is too large to check, or the tree
 /// over the rest would be refused): then every primitive may block.
@@ -41,8 +59,7 @@ pub fn occluders(shapes: &[Shape], delta_lights: &[DeltaLight]) -> Option<Occlud
     let triangles = (shapes.iter())
         .filter(|s| matches!(s, Shape::Triangle(_)))
         .count();
-    let point_count = 3 * triangles + (shapes.len() - triangles) + delta_lights.len();
-    if triangles.saturating_mul(point_count) > MAX_CHECKS {
+    if too_many_checks(triangles, shapes.len(), delta_lights.len()) {
         return None;
     }
     let points = scene_points(shapes, delta_lights);
@@ -178,6 +195,10 @@ mod tests {
         });
         let occluders = occluders(&box_with(&[ball]), &[]).expect("the floor and ceiling bound it");
         assert_eq!(occluders.leaf_prims, vec![LeafPrim::new(&ball)]);
+        // The same from the records flattening keeps instead of shapes.
+        let records: Vec<LeafPrim> = box_with(&[ball]).iter().map(LeafPrim::new).collect();
+        let from_records = occluders_of_records(&records, &[]).expect("the same occluders");
+        assert_eq!(from_records.leaf_prims, occluders.leaf_prims);
     }
 
     #[test]

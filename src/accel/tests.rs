@@ -590,7 +590,7 @@ fn chunked_builds_find_the_hits_of_the_whole_build_and_of_brute_force() {
             let mut ray = random_ray(11, i);
             if name.contains("plane") {
                 // From above the plane, down through it.
-                ray.0.z = 1.0 + ray.0.z;
+                ray.0.z += 1.0;
                 ray.1.z = -ray.1.z.abs() - 0.1;
                 ray.1 = ray.1.normalize();
             }

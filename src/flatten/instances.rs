@@ -13,7 +13,6 @@ use super::meshes::flatten_mesh;
 use super::{Attributes, Columns, build_tree};
 use crate::accel::build::Bvh4;
 use crate::accel::instances::{Instance, Instances, Prototype};
-use crate::accel::leaf_prims::LeafPrim;
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Vec3A};
 use crate::scene::{Mesh, Name, SharedMesh, VertexColors, VertexTangents};
@@ -183,12 +182,9 @@ fn prototype(
             "mesh '{name}': skipped {skipped} degenerate (zero-area) triangles"
         ));
     }
-    let (bvh, order) = build_tree(&columns.shapes, path)?;
+    let (bvh, order) = build_tree(&columns.leaf_prims, path)?;
     Ok(Prototype {
-        leaf_prims: order
-            .par_iter()
-            .map(|&i| LeafPrim::new(&columns.shapes[i as usize]))
-            .collect(),
+        leaf_prims: Columns::ordered_or_empty(&columns.leaf_prims, &order),
         bvh,
         normals: Columns::ordered_or_empty(&columns.normals, &order),
         uvs: Columns::ordered_or_empty(&columns.uvs, &order),

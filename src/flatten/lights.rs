@@ -44,7 +44,7 @@ pub(super) fn scene_lights(
         first_light.push(area_lights.len() as u32);
         let end = groups
             .get(g + 1)
-            .map_or(columns.shapes.len(), |next| next.first);
+            .map_or(columns.leaf_prims.len(), |next| next.first);
         for prim in group.first..end {
             let mut radiance = emitter.radiance;
             // A textured emitter is chosen by its mean radiance; shading applies the texel.
@@ -57,7 +57,7 @@ pub(super) fn scene_lights(
                     uvs: columns.uvs[prim],
                 }
             }));
-            let shape = columns.shapes[prim];
+            let shape = columns.leaf_prims[prim].shape();
             area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
         }
     }

@@ -6,6 +6,7 @@ use super::instances::InstanceRequest;
 use super::lights::validate_emitter;
 use super::materials::{self, MaterialTable};
 use super::{Attributes, Columns, Group, Primitives};
+use crate::accel::leaf_prims::LeafPrim;
 use crate::alpha::{self, AlphaRecord};
 use crate::error::{Error, Result};
 use crate::geometry::{Shape, TriangleGeom};
@@ -117,7 +118,7 @@ pub(super) fn flatten_meshes(
             None => alpha::OPAQUE,
         };
         groups.push(Group {
-            first: columns.shapes.len(),
+            first: columns.leaf_prims.len(),
             material,
             emitter,
             emission_texture,
@@ -275,8 +276,8 @@ pub(super) fn flatten_mesh(
     }
 
     // --- Geometry and vertex attributes of the kept triangles, written in place.
-    extend(&mut columns.shapes, &kept_triangles, count, |t| {
-        Shape::Triangle(geometry(t))
+    extend(&mut columns.leaf_prims, &kept_triangles, count, |t| {
+        LeafPrim::new(&Shape::Triangle(geometry(t)))
     });
     let normals = |t: usize| {
         if mesh.normals.is_empty() {

@@ -32,8 +32,8 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// Peak resident bytes per primitive that flattening adds to the world it reads: the staging
-/// shapes, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
+/// Peak resident bytes per primitive that flattening adds to the world it reads: the leaf
+/// records, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
 /// peaks at about 240 bytes per triangle in all, file and world included; see
 /// docs/performance.md, "Memory per triangle").
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
@@ -105,7 +105,7 @@ pub fn flatten_with(
 
     // BVH order: every per-primitive column is permuted once, so slots index them directly.
     let bvh_start = Instant::now();
-    let (bvh, order) = build_tree(&prims.columns.shapes, path)?;
+    let (bvh, order) = build_tree(&prims.columns.leaf_prims, path)?;
     crate::memory::trace_phase("4-wide bvh");
     // The instanced meshes: their own trees and the top-level tree over their instances.
     let instances = instances::build(
@@ -137,7 +137,7 @@ pub fn flatten_with(
     let occluders = if alpha_tested || environment.is_some() || instances.is_some() {
         None
     } else {
-        occluders::occluders(&prims.columns.shapes, &delta_lights)
+        occluders::occluders_of_records(&prims.columns.leaf_prims, &delta_lights)
     };
     let scene_radius = lights::scene_radius(scene_bounds);
     let lights = lights::scene_lights(&prims, delta_lights, environment, scene_radius);
@@ -145,12 +145,11 @@ pub fn flatten_with(
     // Per-slot columns.
     let (material, emitter, alpha_of_slot) =
         slot_materials_lights_and_alpha(&prims.groups, &lights.first_light, &order, alpha_tested);
-    // One record per slot, which also gives back the shape (see `RenderScene::shape`): a
-    // second array of the shapes cost 84 MB and 20 ms at 1.3M triangles.
-    let leaf_prims: Vec<LeafPrim> = order
-        .par_iter()
-        .map(|&i| LeafPrim::new(&prims.columns.shapes[i as usize]))
-        .collect();
+    // One record per slot, which also gives back the shape (see `RenderScene::shape`): the
+    // records made in flattening order are put in slot order in place, so that no second
+    // array of them (or of the shapes: 128 MB at 2M triangles) is alive at once.
+    let mut leaf_prims = std::mem::take(&mut prims.columns.leaf_prims);
+    permute_in_place(&mut leaf_prims, &order);
     crate::memory::trace_phase("leaf prims");
     let Primitives {
         columns,
@@ -235,7 +234,9 @@ struct Group {
 /// column is then all zeros, made without touching memory per primitive.
 #[derive(Default)]
 struct Columns {
-    shapes: Vec<Shape>,
+    /// The primitives' leaf records, which also give back their shapes (and boxes for the
+    /// BVH build): one 64-byte array serves the build, the lights and the render scene.
+    leaf_prims: Vec<LeafPrim>,
     normals: Vec<[Vec3; 3]>,
     uvs: Vec<[Vec2; 3]>,
     tangents: Vec<[Vec4; 3]>,
@@ -256,7 +257,7 @@ struct Attributes {
 impl Columns {
     /// Appends a primitive without vertex attributes (a sphere).
     fn push_plain(&mut self, shape: Shape, attributes: Attributes) {
-        self.shapes.push(shape);
+        self.leaf_prims.push(LeafPrim::new(&shape));
         if attributes.normals {
             self.normals.push([Vec3::ZERO; 3]);
         }

@@ -65,7 +65,7 @@ pub(super) fn flatten_spheres(
         let material = materials.index(material, None, volume);
         let emitter = validate_emitter(emitter, path, name)?;
         groups.push(Group {
-            first: columns.shapes.len(),
+            first: columns.leaf_prims.len(),
             material,
             emitter,
             emission_texture: None,

@@ -507,3 +507,79 @@ fn emit_punctual(light: &DeltaLight, u: Vec2) -> Option<Emission<'static>> {
         area_light: None,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3A;
+
+    #[test]
+    fn the_two_weights_sum_to_one() {
+        let light = AreaLight {
+            pdf_area: 0.37,
+            ..AreaLight::new(
+                Shape::Triangle(crate::geometry::triangle::TriangleGeom::new(
+                    Vec3A::ZERO,
+                    Vec3A::X,
+                    Vec3A::Y,
+                )),
+                Rgb::ONE,
+                false,
+            )
+        };
+        let camera = PinholeCamera::new(
+            &crate::scene::Camera::look_at(
+                crate::math::Vec3::ZERO,
+                crate::math::Vec3::X,
+                crate::math::Vec3::Z,
+                1.0,
+            ),
+            64,
+            48,
+        );
+        for light_paths in [1.0, 300.0, 65536.0] {
+            let weights = CausticWeights {
+                light_paths,
+                camera,
+            };
+            for factor in [1e-6, 0.01, 1.0, 37.0, 1e6] {
+                let path_tracer = path_tracer_weight(&weights, &light, factor);
+                let light_tracer = light_tracer_weight(mis_ratio(light_paths, &light, factor));
+                assert!((path_tracer + light_tracer - 1.0).abs() < 1e-6);
+            }
+        }
+    }
+
+    /// Scenes without a mirror or smooth glass trace no light paths, and their images do not
+    /// change at all.
+    #[test]
+    fn scenes_without_delta_surfaces_render_as_before() {
+        let mut scene = crate::wavefront::next_event::tests::room();
+        let settings = RenderSettings {
+            width: 24,
+            height: 20,
+            spp: 2,
+            ..RenderSettings::default()
+        };
+        assert!(caustics_traced(&scene, &settings));
+        for m in &mut scene.materials {
+            if m.is_delta() {
+                *m = Bsdf::Lambertian {
+                    albedo: Rgb::splat(0.5),
+                };
+            }
+        }
+        assert!(!caustics_traced(&scene, &settings));
+        let render = |caustic_paths| {
+            let settings = RenderSettings {
+                caustic_paths,
+                ..settings
+            };
+            let (film, stats) =
+                crate::render(&scene, &settings, |_| crate::Flow::Continue).unwrap();
+            assert_eq!(stats.light_rays, 0);
+            film.resolve().pixels
+        };
+        assert_eq!(render(1.0), render(0.0));
+    }
+}
