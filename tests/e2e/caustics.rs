@@ -121,16 +121,7 @@ fn block_estimate(
 
 /// Whole-image and centre-block estimates of `scene`.
 fn estimates(scene: &RenderScene, settings: &RenderSettings) -> Vec<([f64; 3], [f64; 3])> {
-    let a = render_image(scene, settings);
-    let b = render_image(
-        scene,
-        &RenderSettings {
-            seed: settings.seed ^ 0xA5A5_5A5A_1234_4321,
-            ..*settings
-        },
-    );
-    assert_finite(&a);
-    assert_finite(&b);
+    let (a, b) = independent_pair(scene, settings);
     let (w, h) = (settings.width, settings.height);
     vec![
         mean_and_error(&a, &b),

@@ -76,13 +76,14 @@ pub fn mean_and_error(a: &Image, b: &Image) -> ([f64; 3], [f64; 3]) {
 
 /// Renders the estimator twice with different seeds and returns its mean and standard error.
 pub fn estimate(scene: &RenderScene, settings: &RenderSettings) -> ([f64; 3], [f64; 3]) {
-    let a = render_image(
-        scene,
-        &RenderSettings {
-            seed: settings.seed,
-            ..*settings
-        },
-    );
+    let (a, b) = independent_pair(scene, settings);
+    mean_and_error(&a, &b)
+}
+
+/// Two renders with independent seeds (`settings.seed` and another derived from it), both
+/// checked for NaN and infinite pixels: the pair [`mean_and_error`] takes.
+pub fn independent_pair(scene: &RenderScene, settings: &RenderSettings) -> (Image, Image) {
+    let a = render_image(scene, settings);
     let b = render_image(
         scene,
         &RenderSettings {
@@ -92,7 +93,7 @@ pub fn estimate(scene: &RenderScene, settings: &RenderSettings) -> ([f64; 3], [f
     );
     assert_finite(&a);
     assert_finite(&b);
-    mean_and_error(&a, &b)
+    (a, b)
 }
 
 /// Panics if any pixel is NaN or infinite.

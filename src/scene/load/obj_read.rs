@@ -465,8 +465,7 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
         let mut face = std::mem::take(&mut self.face);
         face.clear();
         let mut forward = false;
-        for k in 0..corners.len() {
-            let [v, vt, vn] = corners[k];
+        for &[v, vt, vn] in &corners {
             forward |= v as usize >= self.positions.len();
             face.push(self.vertex_of(v, vt, vn, line)?);
         }
