@@ -139,6 +139,19 @@ fn settings(spp: u32, caustic_paths: f32) -> RenderSettings {
     }
 }
 
+/// Asserts that two lists of estimates (`parts`: what each one measures) agree within 4
+/// standard errors, part by part.
+fn assert_parts_agree(
+    label: &str,
+    parts: [&str; 2],
+    a: Vec<([f64; 3], [f64; 3])>,
+    b: Vec<([f64; 3], [f64; 3])>,
+) {
+    for (what, (x, y)) in parts.iter().zip(a.into_iter().zip(b)) {
+        assert_agree(&format!("{label}, {what}"), x, y, 4.0);
+    }
+}
+
 #[test]
 fn area_light_through_a_mirror_equals_its_mirror_image() {
     let mirrored = estimates(&area_light_scene(false), &settings(256, 1.0));
@@ -148,12 +161,7 @@ fn area_light_through_a_mirror_equals_its_mirror_image() {
         "the floor is lit: {:?}",
         mirrored[0]
     );
-    for (what, (m, t)) in ["image", "centre"]
-        .iter()
-        .zip(mirrored.into_iter().zip(twin))
-    {
-        assert_agree(&format!("area light, {what}"), m, t, 4.0);
-    }
+    assert_parts_agree("area light", ["image", "centre"], mirrored, twin);
 }
 
 #[test]
@@ -169,12 +177,7 @@ fn point_light_through_a_mirror_equals_its_mirror_image() {
         "the floor is lit: {:?}",
         mirrored[0]
     );
-    for (what, (m, t)) in ["image", "centre"]
-        .iter()
-        .zip(mirrored.into_iter().zip(twin))
-    {
-        assert_agree(&format!("point light, {what}"), m, t, 4.0);
-    }
+    assert_parts_agree("point light", ["image", "centre"], mirrored, twin);
 }
 
 /// A box with a small ceiling light and a glass sphere whose caustic falls on the floor in
@@ -223,27 +226,15 @@ fn glass_caustic_with_light_paths_equals_the_path_tracer_alone() {
     // it at columns 60-70, rows 80-90).
     let (x0, y0) = (14, 19);
     let both = |settings: &RenderSettings| {
-        let a = render_image(&scene, settings);
-        let b = render_image(
-            &scene,
-            &RenderSettings {
-                seed: settings.seed ^ 0xA5A5_5A5A_1234_4321,
-                ..*settings
-            },
-        );
-        [
+        let (a, b) = independent_pair(&scene, settings);
+        vec![
             mean_and_error(&a, &b),
             block_estimate(&a, &b, x0..x0 + 4, y0..y0 + 4),
         ]
     };
     let with = both(&settings(128, 1.0));
     let without = both(&settings(512, 0.0));
-    for (what, (w, p)) in ["image", "caustic"]
-        .iter()
-        .zip(with.into_iter().zip(without))
-    {
-        assert_agree(&format!("glass caustic, {what}"), w, p, 4.0);
-    }
+    assert_parts_agree("glass caustic", ["image", "caustic"], with, without);
 }
 
 #[test]
