@@ -288,10 +288,18 @@ pub(super) fn flatten_mesh(
         });
         // A shading normal that could not be normalised falls back to flat shading.
         if normals.contains(&Vec3::ZERO) {
-            [Vec3::ZERO; 3]
-        } else {
-            normals
+            return [Vec3::ZERO; 3];
         }
+        // Each turned to the triangle's side before they are interpolated: a vertex shared by
+        // faces that face opposite ways (a two-sided sheet) has a normal of either sign.
+        let facing = geometry(t).normal_unnormalized();
+        normals.map(|n| {
+            if Vec3A::from(n).dot(facing) < 0.0 {
+                -n
+            } else {
+                n
+            }
+        })
     };
     let uvs = |t: usize| {
         if mesh.uvs.is_empty() {

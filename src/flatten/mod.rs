@@ -416,6 +416,35 @@ mod tests {
     use super::*;
 
     #[test]
+    fn vertex_normals_are_turned_to_their_triangles_side() {
+        use crate::math::Vec3;
+        use crate::scene::{Camera, Material, Mesh};
+        // A two-sided square: the second triangle is the first with the opposite winding,
+        // on the same vertices, whose normals point one way (+z) for both.
+        let mut world = hecs::World::new();
+        world.spawn((Camera::look_at(Vec3::Z, Vec3::ZERO, Vec3::Y, 1.0),));
+        let mesh = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: vec![Vec3::Z, Vec3::Z, (Vec3::Z + Vec3::X).normalize()],
+            uvs: Vec::new(),
+            indices: vec![[0, 1, 2], [0, 2, 1]],
+        };
+        let albedo = Vec3::splat(0.5);
+        world.spawn((mesh, Material::Lambertian { albedo }));
+        let scene = flatten(&world, Path::new(".")).unwrap();
+        let mut sides = Vec::new();
+        for slot in 0..2 {
+            let facing = scene.vertex_normals(slot)[0].z.signum();
+            for normal in scene.vertex_normals(slot) {
+                assert_eq!(normal.z.signum(), facing, "slot {slot}: {normal}");
+            }
+            sides.push(facing);
+        }
+        sides.sort_by(f32::total_cmp);
+        assert_eq!(sides, [-1.0, 1.0]);
+    }
+
+    #[test]
     fn permuting_in_place_matches_gathering() {
         // A permutation with cycles of several lengths and fixed points.
         let n = 1000u32;

@@ -23,6 +23,10 @@ use std::path::{Path, PathBuf};
 
 /// A missing `vt` or `vn` index in a corner.
 const NONE: u32 = u32::MAX;
+/// The `vn` of a corner without one in a face of smoothing group `k` (the file's `k`-th
+/// distinct group) is `SMOOTHED + k`: its vertex takes the mean of its faces' normals in that
+/// group. Normal indices past the file's last are clamped below it.
+const SMOOTHED: u32 = 0xF000_0000;
 /// The name of a run before any `o` or `g` (tobj's, which messages and tests know).
 const UNNAMED: &str = "unnamed_object";
 /// Growth of the large columns below this many bytes is not checked against the memory
@@ -207,6 +211,13 @@ struct Reader<'p, L> {
     materials: Vec<tobj::Material>,
     material_names: HashMap<String, usize>,
     libraries: Vec<(PathBuf, Option<tobj::LoadError>)>,
+    /// The smoothing group of the faces read now (`s`): `None` for `s off` / `s 0`, else
+    /// the marker of its corners without `vn` (see [`SMOOTHED`]).
+    smoothing: Option<u32>,
+    /// Group number -> marker, for the groups seen so far.
+    smoothing_groups: HashMap<String, u32>,
+    /// Statements of kinds wavetrace does not read: keyword -> (count, first line).
+    ignored: std::collections::BTreeMap<String, (usize, usize)>,
     /// Polygons triangulated as fans (ear clipping failed): count, first line and reason.
     fanned: usize,
     first_fanned: Option<(usize, String)>,
@@ -246,6 +257,9 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
             materials: Vec::new(),
             material_names: HashMap::new(),
             libraries: Vec::new(),
+            smoothing: None,
+            smoothing_groups: HashMap::new(),
+            ignored: Default::default(),
             fanned: 0,
             first_fanned: None,
             content: false,
@@ -313,19 +327,35 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 Ok(())
             }
             "mtllib" => {
-                // One file name, which may hold spaces (as tobj reads it).
-                let full = self.dir.join(rest_after(text, keyword));
-                match (self.load_mtl)(&full) {
-                    Ok((materials, names)) => {
-                        let offset = self.materials.len();
-                        self.materials.extend(materials);
-                        for (name, index) in names {
-                            self.material_names.insert(name, index + offset);
-                        }
-                        self.libraries.push((full, None));
+                // One name, which may hold spaces (as tobj reads it), if that file exists;
+                // else the names the statement lists (the format allows several).
+                let rest = rest_after(text, keyword);
+                let whole = self.dir.join(rest);
+                if whole.is_file() || !rest.contains(char::is_whitespace) {
+                    self.load_library(whole);
+                } else {
+                    for name in rest.split_whitespace() {
+                        self.load_library(self.dir.join(name));
                     }
-                    Err(e) => self.libraries.push((full, Some(e))),
                 }
+                Ok(())
+            }
+            "s" => {
+                let group = rest_after(text, keyword);
+                self.smoothing = match group {
+                    "off" | "0" | "" => None,
+                    group => {
+                        let next = self.smoothing_groups.len() as u32;
+                        if next >= NONE - SMOOTHED {
+                            return Err(self.error(line, "too many smoothing groups"));
+                        }
+                        let k = *self
+                            .smoothing_groups
+                            .entry(group.to_string())
+                            .or_insert(next);
+                        Some(SMOOTHED + k)
+                    }
+                };
                 Ok(())
             }
             "usemtl" => {
@@ -344,7 +374,32 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 }
                 Ok(())
             }
-            _ => Ok(()),
+            // Comments, and statements that change nothing in a render: grouping for
+            // editors, the level of detail, and the per-object flags of ray tracers.
+            _ if keyword.starts_with('#') => Ok(()),
+            "mg" | "lod" | "shadow_obj" | "trace_obj" => Ok(()),
+            _ => {
+                self.ignored
+                    .entry(keyword.to_string())
+                    .or_insert((0, line))
+                    .0 += 1;
+                Ok(())
+            }
+        }
+    }
+
+    /// Loads the material library at `full`, keeping its error for the summary.
+    fn load_library(&mut self, full: PathBuf) {
+        match (self.load_mtl)(&full) {
+            Ok((materials, names)) => {
+                let offset = self.materials.len();
+                self.materials.extend(materials);
+                for (name, index) in names {
+                    self.material_names.insert(name, index + offset);
+                }
+                self.libraries.push((full, None));
+            }
+            Err(e) => self.libraries.push((full, Some(e))),
         }
     }
 
@@ -465,8 +520,11 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
         let mut face = std::mem::take(&mut self.face);
         face.clear();
         let mut forward = false;
-        for &[v, vt, vn] in &corners {
+        for &[v, vt, mut vn] in &corners {
             forward |= v as usize >= self.positions.len();
+            if let (NONE, Some(marker)) = (vn, self.smoothing) {
+                vn = marker;
+            }
             face.push(self.vertex_of(v, vt, vn, line)?);
         }
         self.face_corners = corners;
@@ -573,7 +631,7 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                     self.largest[kind] = (magnitude, line);
                 }
                 // Past the largest possible count: out of range, found at the end.
-                (magnitude - 1).min(NONE as u64 - 1) as u32
+                (magnitude - 1).min(SMOOTHED as u64 - 1) as u32
             };
         }
         Ok(out)
@@ -795,6 +853,19 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 ));
             }
         }
+        if !self.ignored.is_empty() {
+            let list: Vec<String> = self
+                .ignored
+                .iter()
+                .map(|(keyword, (count, line))| {
+                    format!("{keyword} ({count}, first at line {line})")
+                })
+                .collect();
+            warnings.push(format!(
+                "{file}: statements wavetrace does not read are ignored: {}",
+                list.join(", ")
+            ));
+        }
         if let Some((line, why)) = &self.bad_faces.1 {
             let count = self.bad_faces.0;
             warnings.push(format!(
@@ -875,16 +946,25 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 format!("vertex ({}, {}, {}) is not finite", p.x, p.y, p.z),
             ));
         }
-        let (normals, uvs) = match &corners {
+        let mut smoothed = false;
+        let (mut normals, uvs) = match &corners {
             Corners::Positions(_) => (Vec::new(), Vec::new()),
             Corners::Triples { keys, .. } => {
-                // A column only when every vertex has it, as before (tobj's shorter columns
-                // were dropped).
-                let normals = if keys.iter().all(|k| (k[2] as usize) < self.normals.len()) {
-                    collect_fallibly(self.at(0), n, |k| self.normals[keys[k][2] as usize])?
-                } else {
-                    Vec::new()
-                };
+                smoothed = keys.iter().any(|k| is_smoothed(k[2]));
+                // A column only when every vertex has a normal or is smoothed (below), as
+                // before (tobj's shorter columns were dropped); a vertex of a face outside
+                // any smoothing group then has none, and its triangles shade flat.
+                let normals =
+                    if smoothed || keys.iter().all(|k| (k[2] as usize) < self.normals.len()) {
+                        collect_fallibly(self.at(0), n, |k| {
+                            self.normals
+                                .get(keys[k][2] as usize)
+                                .copied()
+                                .unwrap_or(Vec3::ZERO)
+                        })?
+                    } else {
+                        Vec::new()
+                    };
                 // OBJ's v runs up the image; wavetrace's (glTF's) runs down.
                 let uvs = if keys.iter().all(|k| (k[1] as usize) < self.texcoords.len()) {
                     collect_fallibly(self.at(0), n, |k| {
@@ -906,7 +986,6 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                     .extend(1.0)
             })?)
         };
-        drop(corners);
         for polygon in deferred {
             self.face_triangles.clear();
             let identity: Vec<u32> = (0..polygon.corners.len() as u32).collect();
@@ -927,6 +1006,10 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 triangles.push([corner(a), corner(b), corner(c)]);
             }
         }
+        if let (true, Corners::Triples { keys, .. }) = (smoothed, &corners) {
+            smooth_normals(&positions, &triangles, keys, &mut normals);
+        }
+        drop(corners);
         triangles.shrink_to_fit();
         Ok(Run {
             name,
@@ -939,6 +1022,80 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
             },
             colors,
         })
+    }
+}
+
+/// Whether a corner's `vn` is a smoothing group's marker (see [`SMOOTHED`]).
+fn is_smoothed(vn: u32) -> bool {
+    (SMOOTHED..NONE).contains(&vn)
+}
+
+/// The normals of the smoothed vertices (whose key names a smoothing group, and whose entry
+/// in `normals` is zero): the mean of their triangles' normals weighted by the triangle's
+/// angle at the vertex, as Blender and Mitsuba compute vertex normals, so that a vertex's
+/// normal does not depend on how its faces were cut into triangles. Each vertex is one
+/// group's (the group is in its key), so the faces of other groups meet it along a crease.
+///
+/// Where the normals cancel, the vertex is on a two-sided sheet (each face also there with
+/// the opposite winding, as some exporters write thin surfaces): its normal is then the mean
+/// with each face's normal turned toward the first's, a normal of the sheet up to its sign,
+/// which the flattening turns to each triangle's side.
+fn smooth_normals(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    keys: &[[u32; 3]],
+    normals: &mut [Vec3],
+) {
+    // Per smoothed vertex: the sum of its weights, to tell a cancelled mean.
+    let mut weights = vec![0.0f32; normals.len()];
+    let accumulate = |normals: &mut [Vec3], weights: &mut [f32], orient: bool| {
+        for triangle in triangles {
+            let p = triangle.map(|c| positions[c as usize]);
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            for k in 0..3 {
+                let corner = triangle[k] as usize;
+                let wanted = if orient {
+                    weights[corner] < 0.0
+                } else {
+                    is_smoothed(keys[corner][2])
+                };
+                if wanted {
+                    let along = |other: usize| (p[other] - p[k]).normalize_or_zero();
+                    let angle = along((k + 1) % 3)
+                        .dot(along((k + 2) % 3))
+                        .clamp(-1.0, 1.0)
+                        .acos();
+                    let sign = if normals[corner].dot(normal) < 0.0 && orient {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+                    normals[corner] += sign * angle * normal;
+                    if !orient {
+                        weights[corner] += angle;
+                    }
+                }
+            }
+        }
+    };
+    accumulate(normals, &mut weights, false);
+    let mut cancelled = false;
+    for (normal, weight) in normals.iter_mut().zip(&mut weights) {
+        if *weight > 0.0 && normal.length() < 1e-3 * *weight {
+            // Marked by a negative weight for the second pass.
+            *normal = Vec3::ZERO;
+            *weight = -1.0;
+            cancelled = true;
+        }
+    }
+    if cancelled {
+        accumulate(normals, &mut weights, true);
+    }
+    for (normal, key) in normals.iter_mut().zip(keys) {
+        if is_smoothed(key[2]) {
+            // Zero when the vertex's triangles are all degenerate: they shade flat.
+            *normal = normal.normalize_or_zero();
+        }
     }
 }
 
@@ -1229,6 +1386,130 @@ mod tests {
         );
         assert_eq!(obj.materials.len(), 2);
         assert!(warnings.is_empty(), "{warnings:?}");
+    }
+
+    /// A roof: two unit squares meeting at a right angle along the edge x = 0 (vertices 1, 2),
+    /// one sloping down to +x, one to -x, with `head` before the first face and `middle`
+    /// between the two.
+    fn roof(head: &str, middle: &str) -> Obj {
+        let text = format!(
+            "v 0 0 1\nv 0 1 1\nv 1 0 0\nv 1 1 0\nv -1 0 0\nv -1 1 0\n\
+             {head}f 1 3 4 2\n{middle}f 1 2 6 5\n"
+        );
+        let (obj, warnings) = read_text(&text).unwrap();
+        assert!(warnings.is_empty(), "{warnings:?}");
+        obj
+    }
+
+    #[test]
+    fn smoothing_groups_give_faces_without_normals_smooth_vertex_normals() {
+        // Without `s` (or with `s off`) the faces shade flat: no normal column.
+        for head in ["", "s off\n", "s 0\n"] {
+            let obj = roof(head, "");
+            assert!(obj.runs[0].mesh.normals.is_empty(), "{head:?}");
+            assert_eq!(obj.runs[0].mesh.positions.len(), 6);
+        }
+        // One group: the ridge's two vertices are shared and take the mean normal, straight
+        // up; each eave keeps its own face's normal. The squares' two triangles each would
+        // count twice at a corner where the square is cut, once elsewhere, if the triangles
+        // were weighted alike: the angles weigh them as the square's one face.
+        let obj = roof("s 1\n", "");
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.positions.len(), 6);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        for (position, normal) in mesh.positions.iter().zip(&mesh.normals) {
+            let expected = match position.x {
+                0.0 => Vec3::Z,
+                x if x > 0.0 => Vec3::new(h, 0.0, h),
+                _ => Vec3::new(-h, 0.0, h),
+            };
+            assert!(
+                (*normal - expected).length() < 1e-6,
+                "{position}: {normal} against {expected}"
+            );
+        }
+        // Two groups: the ridge is a crease, its vertices split, each with its face's normal.
+        let obj = roof("s 1\n", "s 2\n");
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.positions.len(), 8);
+        for (k, normal) in mesh.normals.iter().enumerate() {
+            let side = if k < 4 { h } else { -h };
+            assert!(
+                (*normal - Vec3::new(side, 0.0, h)).length() < 1e-6,
+                "{k}: {normal}"
+            );
+        }
+        // A group and a flat face: the flat face's own vertices have no normal (zero: the
+        // flattening shades their triangles flat); the ridge splits.
+        let obj = roof("s 1\n", "s off\n");
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.positions.len(), 8);
+        assert!(
+            mesh.normals[..4]
+                .iter()
+                .all(|n| (*n - Vec3::new(h, 0.0, h)).length() < 1e-6)
+        );
+        assert!(mesh.normals[4..].iter().all(|n| *n == Vec3::ZERO));
+        // A two-sided roof (each face again with the opposite winding, sharing its
+        // vertices): the normals cancel, and the sheet's normal is taken up to its sign.
+        let obj = roof("s 1\nf 2 4 3 1\n", "f 5 6 2 1\n");
+        let mesh = &obj.runs[0].mesh;
+        assert_eq!(mesh.positions.len(), 6);
+        for (position, normal) in mesh.positions.iter().zip(&mesh.normals) {
+            let expected = match position.x {
+                0.0 => Vec3::Z,
+                x if x > 0.0 => Vec3::new(h, 0.0, h),
+                _ => Vec3::new(-h, 0.0, h),
+            };
+            assert!(
+                (normal.dot(expected).abs() - 1.0).abs() < 1e-6,
+                "{position}: {normal} against {expected}"
+            );
+        }
+        // Faces with their own normals keep them whatever the group.
+        let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 1 0\ns 1\nf 1//1 2//1 3//1\n";
+        let (obj, _) = read_text(text).unwrap();
+        assert_eq!(obj.runs[0].mesh.normals, [Vec3::Y; 3]);
+    }
+
+    #[test]
+    fn statements_not_read_are_named_in_one_warning() {
+        let text = "# a comment\ncstype bspline\ndeg 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n\
+                    curv 0 1 1 2 3\nmg 1\nf 1 2 3\nbevel off\ncurv 0 1 3 2 1\n";
+        let (obj, warnings) = read_text(text).unwrap();
+        assert_eq!(obj.runs[0].mesh.indices.len(), 1);
+        assert_eq!(
+            warnings,
+            [
+                "m.obj: statements wavetrace does not read are ignored: bevel (1, first at line \
+              10), cstype (1, first at line 2), curv (2, first at line 7), deg (1, first at \
+              line 3)"
+            ]
+        );
+    }
+
+    #[test]
+    fn mtllib_reads_a_name_with_spaces_if_that_file_exists_else_each_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.obj");
+        std::fs::write(dir.path().join("my lib.mtl"), "").unwrap();
+        let libraries = |statement: &str| {
+            std::fs::write(&path, format!("{statement}\n{SQUARE}f 1 2 3\n")).unwrap();
+            let mut asked = Vec::new();
+            read(
+                &path,
+                |p| {
+                    asked.push(p.file_name().unwrap().to_string_lossy().into_owned());
+                    tobj::load_mtl_buf(&mut "".as_bytes())
+                },
+                &mut Vec::new(),
+            )
+            .unwrap();
+            asked
+        };
+        assert_eq!(libraries("mtllib my lib.mtl"), ["my lib.mtl"]);
+        assert_eq!(libraries("mtllib a.mtl  b.mtl"), ["a.mtl", "b.mtl"]);
+        assert_eq!(libraries("mtllib one.mtl"), ["one.mtl"]);
     }
 
     #[test]
