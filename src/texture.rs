@@ -79,14 +79,34 @@ pub struct Texture {
     width: u32,
     height: u32,
     /// Row-major texels, row 0 at the top (`v = 0`).
-    texels: Vec<Rgb>,
-    /// Row-major alpha (coverage, linear), kept only when some texel is not opaque: empty
-    /// means opaque everywhere.
-    alpha: Vec<f32>,
+    texels: Texels,
     /// Wrap modes along `u` and `v`.
     pub wrap: [Wrap; 2],
     /// Filter used for every lookup (no mipmapping: a path tracer supersamples anyway).
     pub filter: Filter,
+}
+
+/// The texels as stored. 8-bit images keep their bytes, decoded to linear through a table at
+/// each lookup (the same values a decoded copy would hold, in a quarter of its memory: an
+/// 8192 x 8192 RGBA image takes 256 MiB instead of 1 GiB); other formats are kept as linear
+/// floats.
+#[derive(Clone, Debug, PartialEq)]
+enum Texels {
+    Linear {
+        rgb: Vec<Rgb>,
+        /// Alpha (coverage, linear), kept only when some texel is not opaque: empty means
+        /// opaque everywhere.
+        alpha: Vec<f32>,
+    },
+    Bytes {
+        /// `channels` bytes a texel: grey, grey + alpha, RGB or RGBA.
+        data: Vec<u8>,
+        channels: usize,
+        /// Byte -> linear colour value (alpha is always linear: byte / 255).
+        decode: Box<[f32; 256]>,
+        /// Whether some texel is not opaque (else alpha lookups give 1).
+        has_alpha: bool,
+    },
 }
 
 /// A stored alpha value (8 or 16 bits) in [0, 1]; alpha is never sRGB-encoded.
@@ -135,8 +155,10 @@ impl Texture {
             Texture {
                 width,
                 height,
-                texels,
-                alpha: Vec::new(),
+                texels: Texels::Linear {
+                    rgb: texels,
+                    alpha: Vec::new(),
+                },
                 wrap: [Wrap::Repeat; 2],
                 filter: Filter::Linear,
             },
@@ -145,7 +167,7 @@ impl Texture {
 
     /// A texture from sRGB-encoded 8-bit data with `channels` bytes per texel (1: grey,
     /// 2: grey + alpha, 3: RGB, 4: RGBA; alpha, always linear, is kept if not all opaque).
-    pub fn from_srgb8(width: u32, height: u32, channels: usize, bytes: &[u8]) -> Option<Self> {
+    pub fn from_srgb8(width: u32, height: u32, channels: usize, bytes: Vec<u8>) -> Option<Self> {
         Self::from_bytes8(width, height, channels, bytes, Encoding::Srgb)
     }
 
@@ -154,18 +176,33 @@ impl Texture {
         Self::from_bytes16(width, height, channels, bytes, Encoding::Srgb)
     }
 
-    /// A texture from 8-bit data with `channels` bytes per texel, decoded as `encoding` says.
+    /// A texture from 8-bit data with `channels` bytes per texel, decoded as `encoding` says
+    /// (kept as they are: see [`Texels`]).
     pub fn from_bytes8(
         width: u32,
         height: u32,
         channels: usize,
-        bytes: &[u8],
+        bytes: Vec<u8>,
         encoding: Encoding,
     ) -> Option<Self> {
-        let lut: Vec<f32> = (0..256)
-            .map(|i| decode(i as f32 / 255.0, encoding))
-            .collect();
-        Self::from_encoded(width, height, channels, bytes, |b| lut[b as usize])
+        let texels = width as usize * height as usize;
+        if texels == 0 || !(1..=4).contains(&channels) || bytes.len() != texels * channels {
+            return None;
+        }
+        let has_alpha = channels.is_multiple_of(2)
+            && bytes.chunks_exact(channels).any(|t| t[channels - 1] < 255);
+        Some(Texture {
+            width,
+            height,
+            texels: Texels::Bytes {
+                data: bytes,
+                channels,
+                decode: Box::new(std::array::from_fn(|i| decode(i as f32 / 255.0, encoding))),
+                has_alpha,
+            },
+            wrap: [Wrap::Repeat; 2],
+            filter: Filter::Linear,
+        })
     }
 
     /// Like [`Self::from_bytes8`] for 16-bit little-endian channels.
@@ -187,11 +224,9 @@ impl Texture {
 
     /// The mean of the texels: what the texture averages to over its whole image.
     pub fn mean(&self) -> Rgb {
-        let sum = self
-            .texels
-            .iter()
-            .fold(glam::DVec3::ZERO, |a, t| a + t.as_dvec3());
-        (sum / self.texels.len() as f64).as_vec3()
+        let count = self.width as usize * self.height as usize;
+        let sum = (0..count).fold(glam::DVec3::ZERO, |a, k| a + self.texel_at(k).as_dvec3());
+        (sum / count as f64).as_vec3()
     }
 
     fn from_encoded<T: AlphaValue>(
@@ -214,12 +249,14 @@ impl Texture {
             .collect();
         let mut texture = Self::new(width, height, texels)?;
         if channels.is_multiple_of(2) {
-            let alpha: Vec<f32> = data
+            let opacity: Vec<f32> = data
                 .chunks_exact(channels)
                 .map(|t| alpha_of(t[channels - 1]))
                 .collect();
-            if alpha.iter().any(|&a| a < 1.0) {
-                texture.alpha = alpha;
+            if let (true, Texels::Linear { alpha, .. }) =
+                (opacity.iter().any(|&a| a < 1.0), &mut texture.texels)
+            {
+                *alpha = opacity;
             }
         }
         Some(texture)
@@ -227,16 +264,25 @@ impl Texture {
 
     /// Whether some texel is not opaque.
     pub fn has_alpha(&self) -> bool {
-        !self.alpha.is_empty()
+        match &self.texels {
+            Texels::Linear { alpha, .. } => !alpha.is_empty(),
+            Texels::Bytes { has_alpha, .. } => *has_alpha,
+        }
     }
 
     /// The filtered alpha (coverage) at texture coordinate `uv`; 1 for an opaque texture.
     #[inline]
     pub fn lookup_alpha(&self, uv: Vec2) -> f32 {
-        if self.alpha.is_empty() {
+        if !self.has_alpha() {
             return 1.0;
         }
-        self.filtered(uv, |i, j| self.alpha[j * self.width as usize + i])
+        let w = self.width as usize;
+        match &self.texels {
+            Texels::Linear { alpha, .. } => self.filtered(uv, |i, j| alpha[j * w + i]),
+            Texels::Bytes { data, channels, .. } => self.filtered(uv, |i, j| {
+                alpha_of(data[(j * w + i) * channels + channels - 1])
+            }),
+        }
     }
 
     /// Width and height in texels.
@@ -286,7 +332,31 @@ impl Texture {
 
     #[inline]
     fn texel(&self, i: usize, j: usize) -> Rgb {
-        self.texels[j * self.width as usize + i]
+        self.texel_at(j * self.width as usize + i)
+    }
+
+    /// The linear colour of texel `k` in row-major order.
+    #[inline]
+    fn texel_at(&self, k: usize) -> Rgb {
+        match &self.texels {
+            Texels::Linear { rgb, .. } => rgb[k],
+            Texels::Bytes {
+                data,
+                channels,
+                decode,
+                ..
+            } => {
+                let t = &data[k * channels..];
+                match channels {
+                    1 | 2 => Rgb::splat(decode[t[0] as usize]),
+                    _ => Rgb::new(
+                        decode[t[0] as usize],
+                        decode[t[1] as usize],
+                        decode[t[2] as usize],
+                    ),
+                }
+            }
+        }
     }
 }
 
@@ -411,11 +481,35 @@ mod tests {
     }
 
     #[test]
+    fn eight_bit_texels_look_up_as_their_decoded_floats() {
+        // 3 x 2 RGBA bytes of every kind of value, against the same texels decoded up front.
+        let bytes: Vec<u8> = (0..24u32).map(|k| (k * 37 % 256) as u8).collect();
+        for encoding in [Encoding::Srgb, Encoding::Linear] {
+            let stored = Texture::from_bytes8(3, 2, 4, bytes.clone(), encoding).unwrap();
+            let floats: Vec<Rgb> = bytes
+                .chunks_exact(4)
+                .map(|t| Rgb::from_array([0, 1, 2].map(|c| decode(t[c] as f32 / 255.0, encoding))))
+                .collect();
+            let mut decoded = Texture::new(3, 2, floats).unwrap();
+            if let Texels::Linear { alpha, .. } = &mut decoded.texels {
+                *alpha = bytes.chunks_exact(4).map(|t| t[3] as f32 / 255.0).collect();
+            }
+            assert!(matches!(stored.texels, Texels::Bytes { .. }));
+            assert_eq!(stored.mean(), decoded.mean());
+            for k in 0..50 {
+                let uv = Vec2::new(k as f32 * 0.137 - 1.0, k as f32 * 0.071 - 0.5);
+                assert_eq!(stored.lookup(uv), decoded.lookup(uv), "{uv}");
+                assert_eq!(stored.lookup_alpha(uv), decoded.lookup_alpha(uv), "{uv}");
+            }
+        }
+    }
+
+    #[test]
     fn alpha_is_kept_linear_only_when_some_texel_is_not_opaque() {
-        let opaque = Texture::from_srgb8(2, 1, 4, &[9, 9, 9, 255, 0, 0, 0, 255]).unwrap();
+        let opaque = Texture::from_srgb8(2, 1, 4, vec![9, 9, 9, 255, 0, 0, 0, 255]).unwrap();
         assert!(!opaque.has_alpha());
         assert_eq!(opaque.lookup_alpha(Vec2::new(0.25, 0.5)), 1.0);
-        let mut t = Texture::from_srgb8(2, 1, 2, &[255, 255, 255, 51]).unwrap();
+        let mut t = Texture::from_srgb8(2, 1, 2, vec![255, 255, 255, 51]).unwrap();
         t.wrap = [Wrap::ClampToEdge; 2];
         assert!(t.has_alpha());
         assert_eq!(t.lookup_alpha(Vec2::new(0.25, 0.5)), 1.0);
@@ -433,7 +527,7 @@ mod tests {
 
     #[test]
     fn linear_bytes_stay_linear_and_the_mean_averages_texels() {
-        let t = Texture::from_bytes8(2, 1, 3, &[255, 51, 0, 0, 0, 0], Encoding::Linear).unwrap();
+        let t = Texture::from_bytes8(2, 1, 3, vec![255, 51, 0, 0, 0, 0], Encoding::Linear).unwrap();
         assert_eq!(t.lookup(Vec2::new(0.25, 0.5)), Rgb::new(1.0, 0.2, 0.0));
         assert_eq!(t.mean(), Rgb::new(0.5, 0.1, 0.0));
     }
@@ -457,9 +551,9 @@ mod tests {
 
     #[test]
     fn srgb_bytes_decode_to_linear() {
-        let t = Texture::from_srgb8(1, 1, 4, &[255, 188, 0, 7]).unwrap();
+        let t = Texture::from_srgb8(1, 1, 4, vec![255, 188, 0, 7]).unwrap();
         let c = t.lookup(Vec2::splat(0.5));
         assert!((c.x - 1.0).abs() < 1e-6 && (c.y - 0.5029).abs() < 1e-3 && c.z == 0.0);
-        assert!(Texture::from_srgb8(2, 1, 3, &[0; 5]).is_none());
+        assert!(Texture::from_srgb8(2, 1, 3, vec![0; 5]).is_none());
     }
 }

@@ -184,36 +184,48 @@ fn a_gltf_with_buffers_too_large_to_read_is_refused_with_a_clear_error() {
 }
 
 /// A texture whose texels would not fit is left out with one warning, and the rest renders:
-/// an 8192 x 8192 grey PNG (64 MB decoded, 256 KB on disk) becomes 1 GiB of linear texels,
-/// more than `ulimit -v` 1 GiB leaves; the OBJ's material renders with its `Kd`.
+/// an 8192 x 8192 16-bit grey PNG (128 MB decoded, 1 MB on disk) becomes 1 GiB of linear
+/// float texels, more than `ulimit -v` 1 GiB leaves; the OBJ's material renders with its
+/// `Kd`. The same image in 8 bits is kept as its bytes (64 MB) and fits.
 #[test]
 fn a_texture_too_large_to_decode_is_skipped_with_a_warning() {
     const SIDE: u32 = 8192;
     let dir = tempfile::tempdir().unwrap();
-    let grey = image::GrayImage::new(SIDE, SIDE);
-    grey.save(dir.path().join("huge.png")).unwrap();
-    std::fs::write(
-        dir.path().join("huge.mtl"),
-        "newmtl wall\nKd 0.5 0.5 0.5\nmap_Kd huge.png\n",
-    )
-    .unwrap();
-    let path = dir.path().join("huge.obj");
-    std::fs::write(
-        &path,
-        "mtllib huge.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl wall\nf 1 2 3\n",
-    )
-    .unwrap();
-    let output = dir.path().join("huge-texture.png");
-    let out = render_limited(1 << 20, &path, &output);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    for expected in [
-        "huge.png",
-        "does not fit in memory",
-        "decoding its 8192 x 8192 texels",
-        "using Kd alone",
-    ] {
-        assert!(stderr.contains(expected), "no '{expected}' in: {stderr}");
+    image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::new(SIDE, SIDE)
+        .save(dir.path().join("huge16.png"))
+        .unwrap();
+    image::GrayImage::new(SIDE, SIDE)
+        .save(dir.path().join("huge8.png"))
+        .unwrap();
+    for bits in [16, 8] {
+        std::fs::write(
+            dir.path().join("huge.mtl"),
+            format!("newmtl wall\nKd 0.5 0.5 0.5\nmap_Kd huge{bits}.png\n"),
+        )
+        .unwrap();
+        let path = dir.path().join("huge.obj");
+        std::fs::write(
+            &path,
+            "mtllib huge.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl wall\nf 1 2 3\n",
+        )
+        .unwrap();
+        let output = dir.path().join(format!("huge-texture-{bits}.png"));
+        let out = render_limited(1 << 20, &path, &output);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(output.exists(), "the image is written");
+        let skipped = [
+            "huge16.png",
+            "does not fit in memory",
+            "decoding its 8192 x 8192 texels",
+            "using Kd alone",
+        ];
+        for expected in skipped {
+            assert_eq!(
+                stderr.contains(expected),
+                bits == 16,
+                "'{expected}' with {bits} bits: {stderr}"
+            );
+        }
     }
-    assert!(output.exists(), "the image is written");
 }

@@ -592,7 +592,7 @@ fn texture_of(image: &image::DynamicImage, encoding: Encoding) -> Option<Texture
     match image {
         D::ImageLuma8(_) | D::ImageLumaA8(_) | D::ImageRgb8(_) | D::ImageRgba8(_) => {
             let channels = image.color().channel_count() as usize;
-            Texture::from_bytes8(w, h, channels, image.as_bytes(), encoding)
+            Texture::from_bytes8(w, h, channels, image.as_bytes().to_vec(), encoding)
         }
         D::ImageRgb32F(_) | D::ImageRgba32F(_) => {
             let floats = image.to_rgb32f();

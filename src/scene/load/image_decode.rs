@@ -32,16 +32,17 @@ pub(super) fn decode_image_bytes(bytes: &[u8]) -> Result<DynamicImage, String> {
 }
 
 /// Upper bound of the bytes alive at once while an image of `texels` texels, `decoded` bytes
-/// as decoded, becomes a texture: the decoded image, the texture's linear RGB (12 bytes a
-/// texel) and alpha (4), and the conversions made on the way for formats other than 8-bit
-/// (float: an RGB copy, 12; 16-bit and others: an RGBA16 copy and its two byte views, 24).
+/// as decoded, becomes a texture. An 8-bit image's texture keeps its bytes: a copy or a
+/// conversion of the decoded image, at most 4 bytes a texel. Other formats become linear RGB
+/// (12 bytes a texel) and alpha (4), made through a conversion (float: an RGB copy, 12;
+/// 16-bit and others: an RGBA16 copy and its two byte views, 24).
 fn texture_peak_bytes(color: ColorType, texels: u64, decoded: u64) -> u64 {
-    let conversion = match color {
-        ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => 0,
-        ColorType::Rgb32F | ColorType::Rgba32F => 12,
-        _ => 24,
+    let per_texel = match color {
+        ColorType::L8 | ColorType::La8 | ColorType::Rgb8 | ColorType::Rgba8 => 4,
+        ColorType::Rgb32F | ColorType::Rgba32F => 16 + 12,
+        _ => 16 + 24,
     };
-    decoded.saturating_add(texels.saturating_mul(16 + conversion))
+    decoded.saturating_add(texels.saturating_mul(per_texel))
 }
 
 #[cfg(test)]
@@ -74,10 +75,10 @@ mod tests {
 
     #[test]
     fn the_estimate_covers_the_texture_and_the_conversions() {
-        // 8-bit RGBA: 4 bytes decoded + 16 for the texture's RGB and alpha.
-        assert_eq!(texture_peak_bytes(ColorType::Rgba8, 10, 40), 200);
+        // 8-bit grey: 1 byte decoded + at most 4 for the texture's copy or conversion.
+        assert_eq!(texture_peak_bytes(ColorType::L8, 10, 10), 50);
         // 16-bit RGBA: 8 decoded + 16 + 24 for the RGBA16 copy and its byte views.
         assert_eq!(texture_peak_bytes(ColorType::Rgba16, 10, 80), 480);
-        assert_eq!(texture_peak_bytes(ColorType::Rgba8, u64::MAX, 1), u64::MAX);
+        assert_eq!(texture_peak_bytes(ColorType::Rgba16, u64::MAX, 1), u64::MAX);
     }
 }

@@ -319,8 +319,16 @@ fn texture_file_name(arguments: &str) -> (&str, Vec<&str>) {
 /// Reads an image file as an sRGB colour texture (repeat, bilinear).
 pub(super) fn load_texture(path: &Path) -> std::result::Result<Texture, String> {
     let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
-    let image = super::image_decode::decode_image_bytes(&bytes)?.to_rgb8();
-    Texture::from_srgb8(image.width(), image.height(), 3, image.as_raw())
+    let image = super::image_decode::decode_image_bytes(&bytes)?;
+    drop(bytes);
+    let (width, height) = (image.width(), image.height());
+    // Grey and RGB bytes become the texture as they are; others are made RGB (an alpha
+    // channel is not the OBJ material's: that is `map_d`).
+    let (channels, texels) = match image {
+        image::DynamicImage::ImageLuma8(grey) => (1, grey.into_raw()),
+        other => (3, other.into_rgb8().into_raw()),
+    };
+    Texture::from_srgb8(width, height, channels, texels)
         .ok_or_else(|| "the image is empty".to_string())
 }
 
