@@ -71,6 +71,8 @@ use std::f32::consts::{FRAC_1_PI, PI};
 pub struct CausticWeights<'a> {
     /// Light paths traced in the pass (the `n` of the balance heuristic).
     pub light_paths: f32,
+    /// The same, exactly: the range of a camera vertex's pick among them.
+    pub light_path_count: u64,
     /// The camera, for the density of its rays.
     pub camera: PinholeCamera,
     /// Whether camera vertices connect to the light vertices (caustics seen after a diffuse

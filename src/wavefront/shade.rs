@@ -337,8 +337,8 @@ fn shade_one<const THROUGH: bool>(
         && !caustics.light_vertices.is_empty()
         && !bsdf.is_delta()
     {
-        let count = caustics.light_vertices.len() as u64;
-        let pick = params.sampler.index(key, bounce, dim::LIGHT_VERTEX, count) as usize;
+        let slots = caustics.light_path_count;
+        let pick = params.sampler.index(key, bounce, dim::LIGHT_VERTEX, slots) as usize;
         let at = CameraVertex {
             p,
             ng,

@@ -329,8 +329,7 @@ black = { type = "diffuse", albedo = [0.0, 0.0, 0.0] }
 #[test]
 fn wall_lit_through_a_mirror_after_a_diffuse_bounce_equals_its_mirror_image() {
     // With the connections' weight set to 1 (counting these paths twice) the image mean
-    // is 1.7% too high, 4.2 standard errors at 256 and 64 spp: twice the samples put it
-    // near 6.
+    // is 1.4% too high: 5.4 standard errors at these sample counts.
     let mirrored = estimates(&wall_scene(false), &settings(512, 1.0));
     let twin = estimates(&wall_scene(true), &settings(128, 1.0));
     assert!(
