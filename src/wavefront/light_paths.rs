@@ -15,6 +15,9 @@
 //! one buffer, and each camera sample of the pass carries its pixel's splats into the film
 //! (`batch::compact_paths`): a pixel that takes no sample in the pass (adaptive sampling, an
 //! interrupted pass) drops them, and each sample stays an unbiased estimate of its pixel.
+//! The diffuse points are also kept, in path order, as the pass's light vertices, to which
+//! the camera paths' later vertices connect ([`super::light_vertices`]: caustics seen after a
+//! diffuse bounce).
 //!
 //! The path tracer finds the same paths (camera -> `x1`, non-delta BSDF sample, delta
 //! bounces, emitter) and both count them with the balance heuristic, one camera sample per
