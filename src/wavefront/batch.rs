@@ -76,8 +76,10 @@ pub struct PathState {
     /// For a path whose last non-delta vertex `x1` (all bounces since delta ones) could be a
     /// light path's diffuse point: the part of the light-tracing MIS ratio that the vertex
     /// before `x1` gives, the camera's or a connecting vertex's, with its strategy's count
-    /// ([`super::light_paths::camera_vertex_factor`], [`super::light_vertices`]); 0 for every
-    /// other path (and when no light paths are traced).
+    /// ([`super::light_paths::camera_vertex_factor`], [`super::light_vertices`]); negative
+    /// from `x1`'s sample until a delta bounce follows (emission found straight after `x1`,
+    /// which counts in full without shadow rays, is no caustic); 0 for every other path (and
+    /// when no light paths are traced).
     pub caustic_factor: Vec<f32>,
 }
 

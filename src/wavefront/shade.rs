@@ -248,14 +248,15 @@ fn shade_one<const THROUGH: bool>(
         if front || light.two_sided {
             let emitted = surface::emitted_radiance(scene, emitter, hit.barycentric);
             if *path.count_emission {
-                // A caustic path (camera, non-delta hit, delta bounces, light) that the
-                // light paths find too: weighted against them.
-                let weight =
-                    if params.caustics.is_some() && bounce >= 2 && *path.caustic_factor > 0.0 {
-                        light_paths::path_tracer_weight(light, *path.caustic_factor)
-                    } else {
-                        1.0
-                    };
+                // A caustic path (camera or non-delta vertex, non-delta x1, delta bounces,
+                // light) that the light paths find too: weighted against them. (Without
+                // shadow rays emission after a non-delta bounce counts here too; its factor
+                // is still pending, negative.)
+                let weight = if params.caustics.is_some() && *path.caustic_factor > 0.0 {
+                    light_paths::path_tracer_weight(light, *path.caustic_factor)
+                } else {
+                    1.0
+                };
                 *path.radiance += *path.throughput * emitted * weight;
             } else {
                 let weight = next_event::emission_weight(
@@ -402,15 +403,17 @@ fn shade_one<const THROUGH: bool>(
     if ((ng.dot(wi) > 0.0) == front) == transmitted {
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
-    if let Some(caustics) = &params.caustics
-        && !sample.is_delta
-    {
-        // This vertex as the light paths' diffuse point x1: the previous vertex's part of the
-        // MIS ratio (with the count of its strategy), kept through delta bounces. The camera
-        // connects to the pass's n light paths; a non-delta vertex before x1 connects to one
-        // light vertex; after a delta vertex nothing connects to x1.
-        *path.caustic_factor = if bounce == 0 {
-            caustics.light_paths
+    if let Some(caustics) = &params.caustics {
+        *path.caustic_factor = if sample.is_delta {
+            // A delta bounce after x1: the light paths can end here, the factor counts.
+            path.caustic_factor.abs()
+        } else if bounce == 0 {
+            // This vertex as the light paths' diffuse point x1: the previous vertex's part of
+            // the MIS ratio (with the count of its strategy), pending (negative) until a delta
+            // bounce follows, and kept through the delta bounces. The camera connects to the
+            // pass's n light paths; a non-delta vertex before x1 connects to one light vertex;
+            // after a delta vertex nothing connects to x1.
+            -caustics.light_paths
                 * light_paths::camera_vertex_factor(
                     ng.dot(wi).abs(),
                     sample.pdf,
@@ -420,7 +423,7 @@ fn shade_one<const THROUGH: bool>(
                 )
         } else if caustics.connections && *path.bsdf_pdf > 0.0 {
             // `bsdf_pdf` still holds the density of the previous (non-delta) vertex's sample.
-            light_paths::camera_vertex_factor(
+            -light_paths::camera_vertex_factor(
                 ng.dot(wi).abs(),
                 sample.pdf,
                 ng.dot(wo).abs(),
