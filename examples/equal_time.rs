@@ -10,7 +10,7 @@
 //! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
 //!     (--spp 16 | --time 4s | both) [--seeds 4] [--seed S] [--sampler independent|sobol] \
 //!     [--noise-threshold T [--min-spp N]] [--shadow-rays N] [--roulette-min-bounces N] \
-//!     [--no-mis] [--caustic-paths N] [--threads N] [--write out.exr]
+//!     [--no-mis] [--caustic-paths N] [--no-caustic-connections] [--threads N] [--write out.exr]
 //! ```
 //!
 //! With `--noise-threshold` the render is adaptive (8x8 tiles stop at that threshold; with
@@ -76,6 +76,10 @@ struct Args {
     /// Light paths per pixel and pass for caustics (default: the renderer's; 0: off).
     #[arg(long)]
     caustic_paths: Option<f32>,
+    /// No connections of camera vertices to the light paths' diffuse points (caustics seen
+    /// after a diffuse bounce); the light paths still make the caustics seen directly.
+    #[arg(long)]
+    no_caustic_connections: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -104,6 +108,7 @@ fn main() -> anyhow::Result<()> {
         shadow_rays: args.shadow_rays.unwrap_or(defaults.shadow_rays),
         mis: !args.no_mis,
         caustic_paths: args.caustic_paths.unwrap_or(defaults.caustic_paths),
+        caustic_connections: !args.no_caustic_connections,
         sampler: match args.sampler {
             SamplerArg::Independent => Sampler::Independent,
             SamplerArg::Sobol => Sampler::Sobol,

@@ -82,6 +82,10 @@ pub struct RenderSettings {
     /// sampling (`wavefront::light_paths`); 0 turns them off. They run only in scenes with a
     /// delta surface and an area, point or spot light.
     pub caustic_paths: f32,
+    /// Whether camera path vertices connect to the light paths' diffuse end points (caustics
+    /// seen after a diffuse bounce, `wavefront::light_vertices`), when light paths run. On by
+    /// default; the examples and tests turn it off to compare (no flag of the command line).
+    pub caustic_connections: bool,
 }
 
 /// Default light paths per pixel and pass for caustics: a quarter. On the room 0.25, 1 and 4
@@ -108,6 +112,7 @@ impl Default for RenderSettings {
             roulette_min_bounces: 1,
             max_depth: 1024,
             caustic_paths: DEFAULT_CAUSTIC_PATHS,
+            caustic_connections: true,
         }
     }
 }

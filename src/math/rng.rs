@@ -27,6 +27,9 @@ pub mod dim {
     /// The shift of the shadow rays' lattice (light choice and point on the light, 3 numbers
     /// from one hash).
     pub const LIGHT_SAMPLES: u32 = 6;
+    /// Which light vertex of the pass a camera vertex connects to (an index, always from
+    /// independent bits: see [`super::Sampler::index`]).
+    pub const LIGHT_VERTEX: u32 = 8;
 }
 
 /// SplitMix64's finaliser: a bijective 64-bit mixer with full avalanche.
@@ -86,6 +89,13 @@ pub fn uniform3(key: u64, bounce: u32, dimension: u32) -> (f32, Vec2) {
         unit_float(h, 40, 24),
         Vec2::new(unit_float(h, 20, 20), unit_float(h, 0, 20)),
     )
+}
+
+/// An index uniform in `0..n` for `dimension` of `bounce` of the path with key `key`: the
+/// high half of 64 random bits times `n`, uniform to within `n / 2^64` for any `n`.
+#[inline]
+pub fn uniform_index(key: u64, bounce: u32, dimension: u32, n: u64) -> u64 {
+    ((bits(key, bounce, dimension) as u128 * n as u128) >> 64) as u64
 }
 
 /// Two uniform numbers: `dimension` and `dimension + 1`.
@@ -165,6 +175,14 @@ impl Sampler {
         }
     }
 
+    /// An index uniform in `0..n` for `dimension` of `bounce`, from independent bits with
+    /// either sampler (a choice among `n` things gains nothing from a stratified pattern of
+    /// 24-bit numbers, which could not even reach every index of a large `n`).
+    #[inline]
+    pub fn index(self, key: u64, bounce: u32, dimension: u32, n: u64) -> u64 {
+        uniform_index(self.independent_key(key), bounce, dimension, n)
+    }
+
     /// Two uniform numbers for `dimension` of `bounce` (with the Sobol sampler, one 2-D
     /// pattern; independent: dimensions `dimension` and `dimension + 1`).
     #[inline(always)]
@@ -212,6 +230,25 @@ mod tests {
             let u = uniform(k, d / 10, d);
             assert!((0.0..1.0).contains(&u));
         }
+    }
+
+    /// Indices fall in range and every one of a few is chosen about equally often (chi-square
+    /// with 6 degrees of freedom below its 0.999 quantile, 22.46).
+    #[test]
+    fn indices_are_uniform() {
+        let (n, draws) = (7u64, 70_000u32);
+        let mut counts = [0u32; 7];
+        for i in 0..draws {
+            let k = uniform_index(path_key(3, i, 0), 1, dim::LIGHT_VERTEX, n);
+            counts[k as usize] += 1;
+        }
+        let expected = draws as f64 / n as f64;
+        let chi2: f64 = (counts.iter())
+            .map(|&c| (c as f64 - expected).powi(2) / expected)
+            .sum();
+        assert!(chi2 < 22.46, "{counts:?}");
+        assert_eq!(uniform_index(5, 0, 0, 1), 0);
+        assert_eq!(uniform_index(5, 0, 0, 0), 0);
     }
 
     #[test]

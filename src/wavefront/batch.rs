@@ -73,10 +73,13 @@ pub struct PathState {
     /// Absorption coefficient of the medium the path travels in (`KHR_materials_volume`):
     /// set when it refracts into an absorbing object, zero outside.
     pub medium: Vec<Rgb>,
-    /// For a path whose camera ray hit a non-delta surface and whose bounces since were all
-    /// delta ones: the part of the light-tracing MIS ratio that the camera vertex gives
-    /// ([`super::light_paths::camera_vertex_factor`]); 0 for every other path (and when no
-    /// light paths are traced).
+    /// For a path whose last non-delta vertex `x1` (all bounces since delta ones) could be a
+    /// light path's diffuse point: the part of the light-tracing MIS ratio that the vertex
+    /// before `x1` gives, the camera's or a connecting vertex's, with its strategy's count
+    /// ([`super::light_paths::camera_vertex_factor`], [`super::light_vertices`]); negative
+    /// from `x1`'s sample until a delta bounce follows (emission found straight after `x1`,
+    /// which counts in full without shadow rays, is no caustic); 0 for every other path (and
+    /// when no light paths are traced).
     pub caustic_factor: Vec<f32>,
 }
 

@@ -15,6 +15,9 @@
 //! one buffer, and each camera sample of the pass carries its pixel's splats into the film
 //! (`batch::compact_paths`): a pixel that takes no sample in the pass (adaptive sampling, an
 //! interrupted pass) drops them, and each sample stays an unbiased estimate of its pixel.
+//! The diffuse points are also kept, in path order, as the pass's light vertices, to which
+//! the camera paths' later vertices connect ([`super::light_vertices`]: caustics seen after a
+//! diffuse bounce).
 //!
 //! The path tracer finds the same paths (camera -> `x1`, non-delta BSDF sample, delta
 //! bounces, emitter) and both count them with the balance heuristic, one camera sample per
@@ -47,6 +50,7 @@
 //! Determinism: light path `k` of pass `p` draws from a key of (seed, pass, k) alone; chunks
 //! of paths run in parallel and their splats are added in path order.
 
+use super::light_vertices::{self, LightVertex};
 use super::shade::{material_absorption, transmittance};
 use super::surface;
 use crate::alpha::RayKey;
@@ -65,13 +69,20 @@ use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
 
 /// What the path tracer needs to weight the caustic paths it finds against the light paths
-/// of the pass.
+/// of the pass, and the light vertices its vertices connect to.
 #[derive(Clone, Copy, Debug)]
-pub struct CausticWeights {
+pub struct CausticWeights<'a> {
     /// Light paths traced in the pass (the `n` of the balance heuristic).
     pub light_paths: f32,
+    /// The same, exactly: the range of a camera vertex's pick among them.
+    pub light_path_count: u64,
     /// The camera, for the density of its rays.
     pub camera: PinholeCamera,
+    /// Whether camera vertices connect to the light vertices (caustics seen after a diffuse
+    /// bounce, [`super::light_vertices`]).
+    pub connections: bool,
+    /// The pass's light vertices, in path order (empty without connections).
+    pub light_vertices: &'a [LightVertex],
 }
 
 /// Whether the render traces light paths for caustics: they are asked for, multiple
@@ -104,7 +115,9 @@ pub fn light_path_count(settings: &RenderSettings, active_pixels: u64) -> u64 {
 /// The camera vertex's part of the MIS ratio: `cos_x1 / (p_bsdf(w1) * p_camera_area(x1))`,
 /// with `cos_x1 = |ng . w1|` toward the light side, `bsdf_pdf` the solid-angle density of
 /// `w1` given the direction to the camera, `to_camera_cos = |ng . wo|`, `distance` from the
-/// eye and `direction_density` the camera's density of its ray direction.
+/// eye and `direction_density` the camera's density of its ray direction. For a connection
+/// after a diffuse bounce the "camera" is the previous vertex `x2`, and `direction_density`
+/// its BSDF's density of the direction to `x1`.
 #[inline]
 pub fn camera_vertex_factor(
     cos_x1: f32,
@@ -129,23 +142,24 @@ fn emission_density_over_cos(light: &AreaLight) -> f32 {
 }
 
 /// `r = n p_LT / p_PT` for a path that left area light `light` and met the camera vertex of
-/// factor `camera_factor` ([`camera_vertex_factor`]).
+/// factor `camera_factor`: `n` (the light paths of the pass for the direct connection to the
+/// camera, 1 for a connection after a diffuse bounce) times [`camera_vertex_factor`].
 #[inline]
-pub fn mis_ratio(light_paths: f32, light: &AreaLight, camera_factor: f32) -> f32 {
-    light_paths * light.pdf_area * emission_density_over_cos(light) * camera_factor
+pub fn mis_ratio(light: &AreaLight, camera_factor: f32) -> f32 {
+    light.pdf_area * emission_density_over_cos(light) * camera_factor
 }
 
 /// The path tracer's weight for emission from `light` found through a delta chain after the
-/// camera vertex of factor `camera_factor`.
+/// camera vertex of factor `camera_factor` (as for [`mis_ratio`]).
 #[inline]
-pub fn path_tracer_weight(weights: &CausticWeights, light: &AreaLight, camera_factor: f32) -> f32 {
-    1.0 / (1.0 + mis_ratio(weights.light_paths, light, camera_factor))
+pub fn path_tracer_weight(light: &AreaLight, camera_factor: f32) -> f32 {
+    1.0 / (1.0 + mis_ratio(light, camera_factor))
 }
 
 /// The light tracer's weight, the complement of [`path_tracer_weight`] (1 for an infinite
 /// ratio: a direction the path tracer cannot sample).
 #[inline]
-fn light_tracer_weight(ratio: f32) -> f32 {
+pub(super) fn light_tracer_weight(ratio: f32) -> f32 {
     1.0 / (1.0 + 1.0 / ratio)
 }
 
@@ -156,7 +170,9 @@ const LIGHT_PATH_SALT: u64 = 0x4C16_47C0_FFEE_D00D;
 const PATHS_PER_JOB: u64 = 4096;
 
 /// Traces the pass's light paths and writes their splats, summed per pixel in path order,
-/// into `splats` (one per pixel of the film, cleared first). Returns the rays traced.
+/// into `splats` (one per pixel of the film, cleared first), and, with
+/// `settings.caustic_connections`, their diffuse end points in path order into
+/// `light_vertices` (cleared first). Returns the rays traced.
 pub fn trace_light_paths(
     scene: &RenderScene,
     settings: &RenderSettings,
@@ -164,9 +180,11 @@ pub fn trace_light_paths(
     pass: u32,
     path_count: u64,
     splats: &mut Vec<Rgb>,
+    light_vertices: &mut Vec<LightVertex>,
 ) -> u64 {
     splats.clear();
     splats.resize((settings.width * settings.height) as usize, Rgb::ZERO);
+    light_vertices.clear();
     if path_count == 0 {
         return 0;
     }
@@ -177,30 +195,39 @@ pub fn trace_light_paths(
         pass,
         light_paths: path_count as f32,
         max_delta_bounces: settings.max_depth.saturating_sub(2),
+        keep_vertices: settings.caustic_connections,
     };
-    let jobs: Vec<(Vec<(u32, Rgb)>, u64)> = (0..path_count.div_ceil(PATHS_PER_JOB))
+    let jobs: Vec<JobOutput> = (0..path_count.div_ceil(PATHS_PER_JOB))
         .into_par_iter()
         .map(|job| {
             let mut stack = TraversalStack::default();
-            let mut found = Vec::new();
-            let mut rays = 0;
+            let mut out = JobOutput::default();
             let first = job * PATHS_PER_JOB;
             for k in first..(first + PATHS_PER_JOB).min(path_count) {
-                if let Some(splat) = tracer.trace(&mut stack, k, &mut rays) {
-                    found.push(splat);
+                if let Some(splat) = tracer.trace(&mut stack, k, &mut out) {
+                    out.splats.push(splat);
                 }
             }
-            (found, rays)
+            out
         })
         .collect();
     let mut rays = 0;
-    for (found, job_rays) in jobs {
-        rays += job_rays;
-        for (pixel, value) in found {
+    for job in jobs {
+        rays += job.rays;
+        for (pixel, value) in job.splats {
             splats[pixel as usize] += value;
         }
+        light_vertices.extend_from_slice(&job.vertices);
     }
     rays
+}
+
+/// What one job of light paths found, in path order.
+#[derive(Default)]
+struct JobOutput {
+    splats: Vec<(u32, Rgb)>,
+    vertices: Vec<LightVertex>,
+    rays: u64,
 }
 
 /// One pass's light tracer.
@@ -213,6 +240,8 @@ struct LightTracer<'a> {
     /// Most delta bounces before the diffuse point: the path tracer's depth cap leaves it
     /// room for the camera's hit, these bounces and the light.
     max_delta_bounces: u32,
+    /// Whether the diffuse points are kept for connections from camera vertices.
+    keep_vertices: bool,
 }
 
 /// Where a light path starts: its ray, throughput, and the area light it left (for the MIS
@@ -222,11 +251,15 @@ struct Emission<'a> {
     direction: Vec3A,
     throughput: Rgb,
     area_light: Option<&'a AreaLight>,
+    /// Its index in the light table, or [`light_vertices::PUNCTUAL`].
+    light_index: u32,
 }
 
 impl LightTracer<'_> {
-    /// Light path `k`: its splat (pixel, value), if it makes one; counts its rays in `rays`.
-    fn trace(&self, stack: &mut TraversalStack, k: u64, rays: &mut u64) -> Option<(u32, Rgb)> {
+    /// Light path `k`: its splat (pixel, value), if it makes one; counts its rays in
+    /// `out.rays` and keeps its diffuse point in `out.vertices` (if asked to).
+    fn trace(&self, stack: &mut TraversalStack, k: u64, out: &mut JobOutput) -> Option<(u32, Rgb)> {
+        let rays = &mut out.rays;
         let scene = self.scene;
         // Paths beyond 2^32 in a pass (huge images) salt the seed with the high bits.
         let seed = self.seed ^ LIGHT_PATH_SALT ^ (k >> 32).wrapping_mul(0x9E37_79B9_7F4A_7C15);
@@ -257,6 +290,19 @@ impl LightTracer<'_> {
                 // The diffuse point: a caustic only after at least one delta bounce.
                 if bounce == 1 {
                     return None;
+                }
+                if self.keep_vertices {
+                    out.vertices.push(LightVertex {
+                        p,
+                        ng,
+                        to_light: -direction,
+                        throughput,
+                        slot: slot as u32,
+                        material: material as u32,
+                        barycentric,
+                        light: emission.light_index,
+                        delta_bounces: bounce - 1,
+                    });
                 }
                 let at = DiffusePoint {
                     slot,
@@ -331,6 +377,7 @@ impl LightTracer<'_> {
         if let Some(light) = lights.lights.get(index) {
             return self.emit_area(light, index as u32, key, u_point, u_direction);
         }
+        // Punctual lights follow the area lights in the table.
         let light = lights.delta_lights.get(index - lights.lights.len())?;
         emit_punctual(light, u_direction)
     }
@@ -371,6 +418,7 @@ impl LightTracer<'_> {
             direction,
             throughput,
             area_light: Some(light),
+            light_index: index,
         })
     }
 
@@ -419,12 +467,12 @@ impl LightTracer<'_> {
             None => 1.0,
             Some(light) => {
                 let pdf = bsdf.pdf(wo_local, wi_local);
-                let factor =
-                    camera_vertex_factor(cos_light, pdf, cos_camera, distance, direction_density);
+                let factor = self.light_paths
+                    * camera_vertex_factor(cos_light, pdf, cos_camera, distance, direction_density);
                 if factor == 0.0 {
                     return None; // a degenerate point: the path tracer's weight is 1 there
                 }
-                light_tracer_weight(mis_ratio(self.light_paths, light, factor))
+                light_tracer_weight(mis_ratio(light, factor))
             }
         };
         let value = throughput
@@ -505,6 +553,7 @@ fn emit_punctual(light: &DeltaLight, u: Vec2) -> Option<Emission<'static>> {
         direction,
         throughput,
         area_light: None,
+        light_index: light_vertices::PUNCTUAL,
     })
 }
 
@@ -527,24 +576,11 @@ mod tests {
                 false,
             )
         };
-        let camera = PinholeCamera::new(
-            &crate::scene::Camera::look_at(
-                crate::math::Vec3::ZERO,
-                crate::math::Vec3::X,
-                crate::math::Vec3::Z,
-                1.0,
-            ),
-            64,
-            48,
-        );
         for light_paths in [1.0, 300.0, 65536.0] {
-            let weights = CausticWeights {
-                light_paths,
-                camera,
-            };
             for factor in [1e-6, 0.01, 1.0, 37.0, 1e6] {
-                let path_tracer = path_tracer_weight(&weights, &light, factor);
-                let light_tracer = light_tracer_weight(mis_ratio(light_paths, &light, factor));
+                let factor = light_paths * factor;
+                let path_tracer = path_tracer_weight(&light, factor);
+                let light_tracer = light_tracer_weight(mis_ratio(&light, factor));
                 assert!((path_tracer + light_tracer - 1.0).abs() < 1e-6);
             }
         }

@@ -17,6 +17,7 @@ pub mod batch;
 pub mod generate;
 pub mod intersect;
 pub mod light_paths;
+mod light_vertices;
 mod next_event;
 pub mod shade;
 pub mod shadow;
@@ -31,6 +32,7 @@ use crate::render_scene::RenderScene;
 use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use light_paths::CausticWeights;
+use light_vertices::LightVertex;
 use rayon::prelude::*;
 use shade::ShadeParams;
 use stats::RenderStats;
@@ -80,7 +82,8 @@ pub fn render(
     let start = Instant::now();
     let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
     let pixel_count = settings.width * settings.height;
-    let batch_size = paths_per_batch(settings);
+    let caustics_traced = light_paths::caustics_traced(scene, settings);
+    let batch_size = paths_per_batch(settings, caustics_traced);
     let round_size = ROUND_PATHS.max(batch_size);
     let mut film = match settings.adaptive {
         Some(_) => Film::with_error_estimate(settings.width, settings.height),
@@ -91,14 +94,15 @@ pub fn render(
         .map(|a| ActiveTiles::new(settings.width, settings.height, a));
     let mut stats = RenderStats::default();
     let mut samples_total = pixel_count as u64 * settings.spp as u64;
+    let connections = caustics_traced && settings.caustic_connections;
     let spare_buffers = BufferPool {
-        shadow_rays_per_path: settings.shadow_rays.max(1) as usize,
+        shadow_rays_per_path: shadow_slots_per_path(settings, connections) as usize,
         spare: Mutex::new(Vec::new()),
     };
-
-    let caustics_traced = light_paths::caustics_traced(scene, settings);
-    // The pass's light-path splats, one per pixel (empty without light paths).
+    // The pass's light-path splats, one per pixel (empty without light paths), and its light
+    // vertices (empty without connections).
     let mut splats: Vec<Rgb> = Vec::new();
+    let mut light_vertices: Vec<LightVertex> = Vec::new();
 
     'passes: for sample_index in 0..settings.spp {
         let caustics = if caustics_traced {
@@ -114,11 +118,15 @@ pub fn render(
                 sample_index,
                 light_paths,
                 &mut splats,
+                &mut light_vertices,
             );
             stats.light_time += start.elapsed();
             Some(CausticWeights {
                 light_paths: light_paths as f32,
+                light_path_count: light_paths,
                 camera,
+                connections,
+                light_vertices: &light_vertices,
             })
         } else {
             None
@@ -315,7 +323,7 @@ struct Batch<'a> {
     active: Option<&'a [bool]>,
     /// The pass's light paths for caustics, if any: how the path tracer weights the caustics
     /// it finds, and their splats, which each pixel's sample carries into the film.
-    caustics: Option<CausticWeights>,
+    caustics: Option<CausticWeights<'a>>,
     splats: &'a [Rgb],
 }
 
@@ -392,15 +400,21 @@ impl Batch<'_> {
 /// paths with up to 32 shadow rays per hit, fewer paths with more.
 const MAX_SHADOW_SLOTS: u32 = 1 << 17;
 
+/// Shadow-ray slots per path: the shadow rays of next-event estimation, and one more for the
+/// connection to a light vertex where camera vertices make one.
+fn shadow_slots_per_path(settings: &RenderSettings, connections: bool) -> u32 {
+    settings.shadow_rays.max(1) + u32::from(connections)
+}
+
 /// Paths per batch: the settings' batch size, cut to the image and to the shadow-ray budget,
 /// so that memory stays bounded whatever the number of shadow rays (the image never depends
 /// on the batch size).
-fn paths_per_batch(settings: &RenderSettings) -> u32 {
-    let shadow_slots_per_path = settings.shadow_rays.max(1);
+fn paths_per_batch(settings: &RenderSettings, caustics_traced: bool) -> u32 {
+    let connections = caustics_traced && settings.caustic_connections;
     settings
         .batch_size
         .min(settings.width * settings.height)
-        .min((MAX_SHADOW_SLOTS / shadow_slots_per_path).max(1))
+        .min((MAX_SHADOW_SLOTS / shadow_slots_per_path(settings, connections)).max(1))
 }
 
 /// Runs `f`, adding its duration to `total`.
@@ -424,13 +438,13 @@ mod tests {
             ..RenderSettings::default()
         };
         // The seed's 15 shadow rays keep the full default batch; the image can cut it.
-        assert_eq!(paths_per_batch(&settings(15, 800)), 4096);
-        assert_eq!(paths_per_batch(&settings(15, 50)), 2500);
+        assert_eq!(paths_per_batch(&settings(15, 800), false), 4096);
+        assert_eq!(paths_per_batch(&settings(15, 50), false), 2500);
         // The most shadow rays: the shadow buffers stay within the budget.
         let most = settings(crate::settings::MAX_SHADOW_RAYS, 800);
-        let paths = paths_per_batch(&most);
+        let paths = paths_per_batch(&most, true);
         assert!(
-            paths >= 1 && paths * most.shadow_rays <= MAX_SHADOW_SLOTS,
+            paths >= 1 && paths * (most.shadow_rays + 1) <= MAX_SHADOW_SLOTS,
             "{paths}"
         );
     }

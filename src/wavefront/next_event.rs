@@ -19,7 +19,7 @@ use crate::render_scene::RenderScene;
 /// Groups of light samples taken before any of them is shaded (see [`sample_lights`]).
 pub(super) const GROUPS_PER_PASS: usize = 4;
 /// Shadow rays stop this fraction short of the light point, so the light itself never occludes.
-const SHADOW_RAY_SHORTENING: f32 = 1e-4;
+pub(super) const SHADOW_RAY_SHORTENING: f32 = 1e-4;
 
 /// What next-event estimation at one hit works with: the lattice of the shadow rays' light
 /// samples (one group per four rays) and the path's chunk of the shadow batch.
@@ -27,6 +27,28 @@ pub(super) struct NextEvent<'a> {
     pub(super) lattice: &'a [LightUniforms],
     pub(super) samples: &'a mut [LightSamples; GROUPS_PER_PASS],
     pub(super) shadow: ShadowView<'a>,
+}
+
+impl NextEvent<'_> {
+    /// The same view, borrowed again (so that the shade stage can still add a ray after
+    /// next-event estimation has written its own).
+    #[inline(always)]
+    pub(super) fn reborrow(&mut self) -> NextEvent<'_> {
+        let shadow = &mut self.shadow;
+        NextEvent {
+            lattice: self.lattice,
+            samples: self.samples,
+            shadow: ShadowView {
+                count: shadow.count,
+                origin: shadow.origin,
+                back_count: shadow.back_count,
+                back_origin: shadow.back_origin,
+                direction: shadow.direction,
+                t_max: shadow.t_max,
+                contribution: shadow.contribution,
+            },
+        }
+    }
 }
 
 /// One path's chunk of the shadow batch.

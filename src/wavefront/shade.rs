@@ -4,7 +4,10 @@
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch, ShadowBatch};
 use super::light_paths::{self, CausticWeights};
-use super::next_event::{self, GROUPS_PER_PASS, Media, NextEvent, ShadingPoint, ShadowView};
+use super::light_vertices::{self, CameraVertex};
+use super::next_event::{
+    self, GROUPS_PER_PASS, Media, NextEvent, SHADOW_RAY_SHORTENING, ShadingPoint, ShadowView,
+};
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::geometry::SurfacePoint;
@@ -20,7 +23,7 @@ const MAX_SURVIVAL: f32 = 0.95;
 
 /// What shading needs to know besides the scene.
 #[derive(Clone, Copy, Debug)]
-pub struct ShadeParams {
+pub struct ShadeParams<'a> {
     /// Index of the bounce: 0 for camera rays.
     pub bounce: u32,
     /// Shadow rays per non-delta hit; 0 disables next-event estimation.
@@ -34,8 +37,9 @@ pub struct ShadeParams {
     /// Where the random numbers come from.
     pub sampler: Sampler,
     /// With light paths for caustics in the pass: what weights the caustic paths the path
-    /// tracer finds against them ([`super::light_paths`]).
-    pub caustics: Option<CausticWeights>,
+    /// tracer finds against them ([`super::light_paths`]), and the light vertices its
+    /// vertices connect to ([`super::light_vertices`]).
+    pub caustics: Option<CausticWeights<'a>>,
 }
 
 /// Shades every hit of the batch. Writes each path's next ray into `next_rays` (same index)
@@ -209,7 +213,7 @@ fn shade_one<const THROUGH: bool>(
     key: u64,
     hit: Hit,
     path: &mut PathView,
-    next_event: NextEvent,
+    mut next_event: NextEvent,
 ) -> bool {
     *next_event.shadow.count = 0;
     *next_event.shadow.back_count = 0;
@@ -244,13 +248,14 @@ fn shade_one<const THROUGH: bool>(
         if front || light.two_sided {
             let emitted = surface::emitted_radiance(scene, emitter, hit.barycentric);
             if *path.count_emission {
-                // A caustic path (camera, non-delta hit, delta bounces, light) that the
-                // light paths find too: weighted against them.
-                let weight = match &params.caustics {
-                    Some(caustics) if bounce >= 2 && *path.caustic_factor > 0.0 => {
-                        light_paths::path_tracer_weight(caustics, light, *path.caustic_factor)
-                    }
-                    _ => 1.0,
+                // A caustic path (camera or non-delta vertex, non-delta x1, delta bounces,
+                // light) that the light paths find too: weighted against them. (Without
+                // shadow rays emission after a non-delta bounce counts here too; its factor
+                // is still pending, negative.)
+                let weight = if params.caustics.is_some() && *path.caustic_factor > 0.0 {
+                    light_paths::path_tracer_weight(light, *path.caustic_factor)
+                } else {
+                    1.0
                 };
                 *path.radiance += *path.throughput * emitted * weight;
             } else {
@@ -313,10 +318,74 @@ fn shade_one<const THROUGH: bool>(
                 &at(),
                 media,
                 throughput,
-                next_event,
+                next_event.reborrow(),
             );
         } else {
-            next_event::sample_lights_front(scene, params, key, &at(), throughput, next_event);
+            next_event::sample_lights_front(
+                scene,
+                params,
+                key,
+                &at(),
+                throughput,
+                next_event.reborrow(),
+            );
+        }
+    }
+
+    // --- Connection to one of the pass's light vertices: caustics seen after this bounce.
+    if let Some(caustics) = &params.caustics
+        && caustics.connections
+        && !caustics.light_vertices.is_empty()
+        && !bsdf.is_delta()
+    {
+        let slots = caustics.light_path_count;
+        let pick = params.sampler.index(key, bounce, dim::LIGHT_VERTEX, slots) as usize;
+        let at = CameraVertex {
+            p,
+            ng,
+            front,
+            frame,
+            bsdf,
+            wo_local,
+            throughput: *path.throughput,
+            bounce,
+        };
+        if let Some(connection) =
+            light_vertices::connect(scene, caustics, pick, &at, params.max_depth)
+        {
+            // One more shadow ray, from the side it leaves: after the front rays of
+            // next-event estimation, or before its back rays at the chunk's end.
+            let shadow = &mut next_event.shadow;
+            let front_normal = if front { ng } else { -ng };
+            let added = if !connection.through {
+                *shadow.origin = offset_ray_origin(p, p_error, ng, front_normal);
+                *shadow.count += 1;
+                Some((*shadow.origin, *shadow.count as usize - 1, *path.medium))
+            } else if THROUGH {
+                *shadow.back_origin = offset_ray_origin(p, p_error, ng, -front_normal);
+                *shadow.back_count += 1;
+                let medium = if front {
+                    material_absorption(scene, material)
+                } else {
+                    Rgb::ZERO
+                };
+                let entry = shadow.direction.len() - *shadow.back_count as usize;
+                Some((*shadow.back_origin, entry, medium))
+            } else {
+                None // nothing transmits in this scene
+            };
+            if let Some((origin, entry, medium)) = added {
+                let to_vertex = connection.target - origin;
+                let distance = to_vertex.length();
+                let t_max = distance * (1.0 - SHADOW_RAY_SHORTENING);
+                shadow.direction[entry] = to_vertex / distance;
+                shadow.t_max[entry] = t_max;
+                shadow.contribution[entry] = if THROUGH && medium != Rgb::ZERO {
+                    connection.contribution * transmittance(medium, t_max)
+                } else {
+                    connection.contribution
+                };
+            }
         }
     }
 
@@ -335,18 +404,35 @@ fn shade_one<const THROUGH: bool>(
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
     if let Some(caustics) = &params.caustics {
-        // The camera vertex's part of the light-tracing weight, kept through delta bounces.
-        if bounce == 0 && !sample.is_delta {
-            *path.caustic_factor = light_paths::camera_vertex_factor(
+        *path.caustic_factor = if sample.is_delta {
+            // A delta bounce after x1: the light paths can end here, the factor counts.
+            path.caustic_factor.abs()
+        } else if bounce == 0 {
+            // This vertex as the light paths' diffuse point x1: the previous vertex's part of
+            // the MIS ratio (with the count of its strategy), pending (negative) until a delta
+            // bounce follows, and kept through the delta bounces. The camera connects to the
+            // pass's n light paths; a non-delta vertex before x1 connects to one light vertex;
+            // after a delta vertex nothing connects to x1.
+            -caustics.light_paths
+                * light_paths::camera_vertex_factor(
+                    ng.dot(wi).abs(),
+                    sample.pdf,
+                    ng.dot(wo).abs(),
+                    hit.t,
+                    caustics.camera.direction_density(hit.direction),
+                )
+        } else if caustics.connections && *path.bsdf_pdf > 0.0 {
+            // `bsdf_pdf` still holds the density of the previous (non-delta) vertex's sample.
+            -light_paths::camera_vertex_factor(
                 ng.dot(wi).abs(),
                 sample.pdf,
                 ng.dot(wo).abs(),
                 hit.t,
-                caustics.camera.direction_density(hit.direction),
-            );
-        } else if !sample.is_delta {
-            *path.caustic_factor = 0.0;
-        }
+                *path.bsdf_pdf,
+            )
+        } else {
+            0.0
+        };
     }
     *path.throughput *= sample.weight;
     if transmitted {
