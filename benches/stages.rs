@@ -96,7 +96,7 @@ struct Prepared {
     bounce_rays: RayBatch,
     shadow_paths: PathState,
     shadows: ShadowBatch,
-    params: ShadeParams,
+    params: ShadeParams<'static>,
 }
 
 /// The pixels of each sub-batch, in order.

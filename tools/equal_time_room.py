@@ -58,7 +58,7 @@ def main():
     p.add_argument("--no-mitsuba", action="store_true")
     p.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
     p.add_argument("--arms", nargs="+", default=["independent", "sobol", "adaptive"],
-                   help="wavetrace arms to run: independent, sobol, adaptive")
+                   help="wavetrace arms to run: independent, sobol, adaptive, no-connections")
     p.add_argument("--scratch", default="target/mitsuba_equal_time.exr")
     args = p.parse_args()
     example = f"target/{args.profile}/examples/equal_time"
@@ -66,6 +66,8 @@ def main():
         "independent": ["--sampler", "independent"],
         "sobol": ["--sampler", "sobol"],
         "adaptive": ["--sampler", "independent", "--noise-threshold", str(args.threshold)],
+        # The light paths without their connections to camera vertices (the code before them).
+        "no-connections": ["--sampler", "independent", "--no-caustic-connections"],
     }
     arms = {name: arms[name] for name in args.arms}
     results = {}
