@@ -337,9 +337,9 @@ def cmd_table(args):
     for repeat in range(args.repeats):
         seed = 100 + repeat
         for budget in args.budgets:
-            arms = [(r, m) for m in (FIXED, ADAPTIVE) for r in ("wavetrace", "cycles")]
-            if repeat % 2:  # alternate which renderer goes first
-                arms = [(r, m) for m in (FIXED, ADAPTIVE) for r in ("cycles", "wavetrace")]
+            order = ("cycles", "wavetrace") if repeat % 2 else ("wavetrace", "cycles")
+            # Which renderer goes first alternates with the seed.
+            arms = [(r, m) for m in args.modes for r in order]
             for renderer, mode in arms:
                 if renderer == "wavetrace":
                     r = wavetrace_run(example, glb, args.wt_ref, budget, seed, mode == ADAPTIVE)
@@ -400,6 +400,7 @@ def main():
     t.add_argument("--budgets", type=float, nargs="+", default=[8, 32])
     t.add_argument("--repeats", type=int, default=3)
     t.add_argument("--target", default="target/release")
+    t.add_argument("--modes", nargs="+", default=[FIXED, ADAPTIVE], choices=[FIXED, ADAPTIVE])
     args = p.parse_args(argv)
     {"build": cmd_build, "render": cmd_render, "compare": cmd_compare, "table": cmd_table}[
         args.cmd](args)
