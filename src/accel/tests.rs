@@ -577,8 +577,10 @@ fn chunked_builds_find_the_hits_of_the_whole_build_and_of_brute_force() {
         ("9000 random", random_shapes(9000), 1000),
         ("5000 in a plane", grid, 700),
     ] {
-        let (whole, whole_order) = build_bvh_in_chunks_of(&shapes, usize::MAX).unwrap();
-        let (chunked, order) = build_bvh_in_chunks_of(&shapes, chunk_size).unwrap();
+        let box_of = |i: usize| obvhs::Boundable::aabb(&shapes[i]);
+        let (whole, whole_order) =
+            build_bvh_in_chunks_of(shapes.len(), &box_of, usize::MAX).unwrap();
+        let (chunked, order) = build_bvh_in_chunks_of(shapes.len(), &box_of, chunk_size).unwrap();
         check_tree(&whole, &whole_order, &shapes);
         check_tree(&chunked, &order, &shapes);
         assert!(
