@@ -34,10 +34,11 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// Peak resident bytes per primitive that flattening adds to the world it reads: the leaf
-/// records, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
-/// peaks at about 240 bytes per triangle in all, file and world included; see
-/// docs/performance.md, "Memory per triangle").
+/// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
+/// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds about
+/// 150 bytes per triangle at the build and peaks at about 170 in all, file and world
+/// included, 213 with normals and texture coordinates; see docs/performance.md, "Memory per
+/// triangle"). Kept with a margin.
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
 /// they are filled): the 2-million-triangle OBJ needs `ulimit -v` of about 1.1 GB where the
