@@ -44,6 +44,8 @@ fn main() -> anyhow::Result<()> {
     let scene = load_scene(&path)?;
     wavetrace::internals::trace_phase("loaded");
     let flat = flatten(&scene.world, &path)?;
+    // As `wavetrace render` does: the world is freed before the render.
+    drop(scene.world);
     wavetrace::internals::trace_phase("flattened");
     let overrides = RenderOverrides {
         width: Some(64),

@@ -101,19 +101,30 @@ const CHUNK_SIZE: usize = 1 << 23;
 /// with the map from BVH slots to shapes: slot `i` holds `shapes[order[i]]`. `None` if the
 /// tree is deeper than [`MAX_DEPTH`] (only degenerate geometry does that).
 pub fn build_bvh<T: obvhs::Boundable>(shapes: &[T]) -> Option<(Bvh4, Vec<u32>)> {
-    build_bvh_in_chunks_of(shapes, CHUNK_SIZE)
+    build_bvh_of(shapes.len(), |i| shapes[i].aabb())
 }
 
-/// [`build_bvh`] with chunks of at most `chunk_size` primitives: a scene that fits in one
+/// [`build_bvh`] over `count` primitives whose boxes `box_of` gives (by index, each asked
+/// for once or a few times, from several threads): the caller needs no array of primitives
+/// or boxes beside the build's own scratch.
+pub fn build_bvh_of(
+    count: usize,
+    box_of: impl Fn(usize) -> Aabb + Sync,
+) -> Option<(Bvh4, Vec<u32>)> {
+    build_bvh_in_chunks_of(count, &box_of, CHUNK_SIZE)
+}
+
+/// [`build_bvh_of`] with chunks of at most `chunk_size` primitives: a scene that fits in one
 /// is built whole; a larger one is ordered by the Morton codes of its boxes' centres, cut
 /// into spatially coherent runs of at most `chunk_size` (see [`chunk_ranges`]), each built
 /// and collapsed on its own (obvhs's scratch freed in between), and joined under a small
 /// tree built over the chunks' boxes. The result is one ordinary [`Bvh4`].
-pub(super) fn build_bvh_in_chunks_of<T: obvhs::Boundable>(
-    shapes: &[T],
+pub(super) fn build_bvh_in_chunks_of(
+    count: usize,
+    box_of: &(impl Fn(usize) -> Aabb + Sync),
     chunk_size: usize,
 ) -> Option<(Bvh4, Vec<u32>)> {
-    let (params, max_leaf_size) = if shapes.len() < SMALL_SCENE {
+    let (params, max_leaf_size) = if count < SMALL_SCENE {
         (BvhBuildParams::very_slow_build(), 1)
     } else {
         let params = BvhBuildParams {
@@ -123,14 +134,14 @@ pub(super) fn build_bvh_in_chunks_of<T: obvhs::Boundable>(
         (params, MAX_LEAF_SIZE)
     };
     let mut bvh = Bvh4::default();
-    let mut order = Vec::with_capacity(shapes.len());
-    if shapes.len() <= chunk_size.max(1) {
-        let bvh2 = build_bvh2(shapes, params);
+    let mut order = Vec::with_capacity(count);
+    if count <= chunk_size.max(1) {
+        let bvh2 = build_bvh2_of(count, box_of, params);
         crate::memory::trace_phase("binary bvh");
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).
         bvh.nodes = Vec::with_capacity(bvh2.nodes.len() / 5 + 1);
-        if !shapes.is_empty() {
+        if count > 0 {
             let tree = BinaryTree {
                 bvh2: &bvh2,
                 max_leaf_size,
@@ -139,7 +150,7 @@ pub(super) fn build_bvh_in_chunks_of<T: obvhs::Boundable>(
             bvh.depth = tree.collapse_in_parallel(&mut bvh.nodes, &mut order);
         }
     } else {
-        let chunks = build_chunks(shapes, chunk_size, params, max_leaf_size);
+        let chunks = build_chunks(count, box_of, chunk_size, params, max_leaf_size);
         crate::memory::trace_phase("binary bvh");
         bvh.depth = join_chunks(chunks, &mut bvh.nodes, &mut order);
     }
@@ -157,18 +168,19 @@ struct Chunk {
     bounds: Aabb,
 }
 
-/// The chunks of `shapes` (see [`chunk_ranges`]), each built and collapsed in turn: only one
-/// chunk's binary tree and boxes are alive at a time.
-fn build_chunks<T: obvhs::Boundable>(
-    shapes: &[T],
+/// The chunks of the `count` primitives whose boxes `box_of` gives (see [`chunk_ranges`]),
+/// each built and collapsed in turn: only one chunk's binary tree is alive at a time.
+fn build_chunks(
+    count: usize,
+    box_of: &(impl Fn(usize) -> Aabb + Sync),
     chunk_size: usize,
     params: BvhBuildParams,
     max_leaf_size: u32,
 ) -> Vec<Chunk> {
-    let centroid_bounds = shapes
-        .par_iter()
-        .map(|shape| {
-            let centre = shape.aabb().center();
+    let centroid_bounds = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            let centre = box_of(i).center();
             Aabb::new(centre, centre)
         })
         .reduce(Aabb::empty, |a, b| a.union(&b));
@@ -176,11 +188,10 @@ fn build_chunks<T: obvhs::Boundable>(
     let extent = centroid_bounds.diagonal();
     let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), extent.recip(), Vec3A::ZERO);
     // Codes with the primitive's index, so that equal codes sort the same on every run.
-    let mut keys: Vec<(u64, u32)> = shapes
-        .par_iter()
-        .enumerate()
-        .map(|(i, shape)| {
-            let unit = (shape.aabb().center() - centroid_bounds.min) * scale;
+    let mut keys: Vec<(u64, u32)> = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            let unit = (box_of(i).center() - centroid_bounds.min) * scale;
             (morton_code(unit), i as u32)
         })
         .collect();
@@ -192,13 +203,8 @@ fn build_chunks<T: obvhs::Boundable>(
     ranges
         .into_iter()
         .map(|range| {
-            let indices = sorted[range].to_vec();
-            let boxes: Vec<Aabb> = indices
-                .par_iter()
-                .map(|&i| shapes[i as usize].aabb())
-                .collect();
-            let bvh2 = build_bvh2(&boxes, params);
-            drop(boxes);
+            let indices = &sorted[range];
+            let bvh2 = build_bvh2_of(indices.len(), &|k| box_of(indices[k] as usize), params);
             let tree = BinaryTree {
                 bvh2: &bvh2,
                 max_leaf_size,
@@ -330,28 +336,69 @@ fn collapse_top(
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
 pub(super) fn build_bvh2<T: obvhs::Boundable>(boxes: &[T], params: BvhBuildParams) -> Bvh2 {
-    // obvhs's leaves hold their primitive's index into `indices` as its place there, so
-    // only the identity gives trees whose leaves can be read through `primitive_indices`.
-    let indices = (0..boxes.len() as u32).collect();
+    build_bvh2_of(boxes.len(), &|i| boxes[i].aabb(), params)
+}
+
+/// [`build_bvh2`] over `count` primitives whose boxes `box_of` gives: obvhs's leaves are
+/// made here from the boxes (as its `build_ploc` makes them from a slice), so no array of
+/// boxes or primitives is needed beside its scratch.
+pub(super) fn build_bvh2_of(
+    count: usize,
+    box_of: &(impl Fn(usize) -> Aabb + Sync),
+    params: BvhBuildParams,
+) -> Bvh2 {
     // The node array is first written by all threads: PLOC's merge loop fills it on one
     // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone
     // (build 240 -> 215 ms there).
-    let node_count = (2 * boxes.len()).saturating_sub(1);
+    let node_count = (2 * count).saturating_sub(1);
     let mut bvh2 = Bvh2 {
         nodes: (0..node_count)
             .into_par_iter()
             .map(|_| Bvh2Node::default())
             .collect(),
+        // obvhs's leaves hold their primitive's index into `primitive_indices` as its place
+        // there, so only the identity gives trees whose leaves can be read through it.
+        primitive_indices: (0..count as u32).collect(),
         ..Bvh2::default()
     };
-    obvhs::ploc::PlocBuilder::with_capacity(boxes.len()).build_with_bvh(
-        &mut bvh2,
-        params.ploc_search_distance,
-        boxes,
-        indices,
-        params.sort_precision,
-        params.search_depth_threshold,
-    );
+    if count == 0 {
+        return bvh2;
+    }
+    let mut ploc = obvhs::ploc::PlocBuilder::with_capacity(count);
+    ploc.current_nodes
+        .par_iter_mut()
+        .enumerate()
+        .for_each(|(i, node)| *node = Bvh2Node::new(box_of(i), 1, i as u32));
+    let total = ploc
+        .current_nodes
+        .par_iter()
+        .map(|node| *node.aabb())
+        .reduce(Aabb::empty, |a, b| a.union(&b));
+    let (precision, depth) = (params.sort_precision, params.search_depth_threshold);
+    use obvhs::ploc::PlocSearchDistance as Distance;
+    match params.ploc_search_distance {
+        Distance::Minimum => {
+            ploc.build_ploc_from_leaves::<1, false>(&mut bvh2, total, precision, depth)
+        }
+        Distance::VeryLow => {
+            ploc.build_ploc_from_leaves::<2, false>(&mut bvh2, total, precision, depth)
+        }
+        Distance::Low => {
+            ploc.build_ploc_from_leaves::<6, false>(&mut bvh2, total, precision, depth)
+        }
+        Distance::Medium => {
+            ploc.build_ploc_from_leaves::<14, false>(&mut bvh2, total, precision, depth)
+        }
+        Distance::High => {
+            ploc.build_ploc_from_leaves::<24, false>(&mut bvh2, total, precision, depth)
+        }
+        Distance::VeryHigh => {
+            ploc.build_ploc_from_leaves::<32, false>(&mut bvh2, total, precision, depth)
+        }
+    }
+    // Its scratch (node lists and Morton codes, about 80 bytes per primitive) is freed
+    // before the collapse allocates.
+    drop(ploc);
     let mut reinsertion = obvhs::bvh2::reinsertion::ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh2, params.reinsertion_batch_ratio, None);
     reinsertion.run(

@@ -69,11 +69,6 @@ impl LeafPrim {
         }
     }
 
-    /// Whether the record holds a triangle (else a sphere).
-    pub fn is_triangle(&self) -> bool {
-        self.a.w != SPHERE_TAG
-    }
-
     /// The primitive this record holds.
     #[inline(always)]
     pub fn shape(&self) -> Shape {

@@ -34,14 +34,18 @@ pub struct Occluders {
     pub leaf_prims: Vec<LeafPrim>,
 }
 
-/// [`occluders`] of the primitives recorded in `prims` (in any order): their shapes are made
-/// only when the scene is small enough to check.
-pub fn occluders_of_records(prims: &[LeafPrim], delta_lights: &[DeltaLight]) -> Option<Occluders> {
-    let triangles = prims.iter().filter(|p| p.is_triangle()).count();
-    if too_many_checks(triangles, prims.len(), delta_lights.len()) {
+/// [`occluders`] of the `count` primitives (`triangles` of them triangles) whose shapes
+/// `shape_of` gives: their shapes are made only when the scene is small enough to check.
+pub fn occluders_of(
+    count: usize,
+    triangles: usize,
+    shape_of: impl Fn(usize) -> Shape,
+    delta_lights: &[DeltaLight],
+) -> Option<Occluders> {
+    if too_many_checks(triangles, count, delta_lights.len()) {
         return None;
     }
-    let shapes: Vec<Shape> = prims.iter().map(LeafPrim::shape).collect();
+    let shapes: Vec<Shape> = (0..count).map(shape_of).collect();
     occluders(&shapes, delta_lights)
 }
 
@@ -195,10 +199,12 @@ mod tests {
         });
         let occluders = occluders(&box_with(&[ball]), &[]).expect("the floor and ceiling bound it");
         assert_eq!(occluders.leaf_prims, vec![LeafPrim::new(&ball)]);
-        // The same from the records flattening keeps instead of shapes.
-        let records: Vec<LeafPrim> = box_with(&[ball]).iter().map(LeafPrim::new).collect();
-        let from_records = occluders_of_records(&records, &[]).expect("the same occluders");
-        assert_eq!(from_records.leaf_prims, occluders.leaf_prims);
+        // The same from the shapes flattening gives one by one.
+        let shapes = box_with(&[ball]);
+        let triangles = shapes.len() - 1;
+        let one_by_one =
+            occluders_of(shapes.len(), triangles, |i| shapes[i], &[]).expect("the same occluders");
+        assert_eq!(one_by_one.leaf_prims, occluders.leaf_prims);
     }
 
     #[test]

@@ -577,8 +577,10 @@ fn chunked_builds_find_the_hits_of_the_whole_build_and_of_brute_force() {
         ("9000 random", random_shapes(9000), 1000),
         ("5000 in a plane", grid, 700),
     ] {
-        let (whole, whole_order) = build_bvh_in_chunks_of(&shapes, usize::MAX).unwrap();
-        let (chunked, order) = build_bvh_in_chunks_of(&shapes, chunk_size).unwrap();
+        let box_of = |i: usize| obvhs::Boundable::aabb(&shapes[i]);
+        let (whole, whole_order) =
+            build_bvh_in_chunks_of(shapes.len(), &box_of, usize::MAX).unwrap();
+        let (chunked, order) = build_bvh_in_chunks_of(shapes.len(), &box_of, chunk_size).unwrap();
         check_tree(&whole, &whole_order, &shapes);
         check_tree(&chunked, &order, &shapes);
         assert!(
@@ -625,4 +627,43 @@ fn chunk_ranges_cut_morton_cells_into_runs_of_at_most_the_chunk_size() {
     let equal: Vec<_> = ranges.iter().filter(|r| r.start >= 1000).collect();
     assert_eq!(equal.len(), 4);
     assert!(equal.iter().all(|r| r.len() == 75));
+}
+
+#[test]
+fn leaves_made_by_hand_give_obvhs_own_tree() {
+    // `build_bvh2_of` makes PLOC's leaves from a box function instead of letting obvhs read
+    // a slice: the binary tree must be the one obvhs's `build_with_bvh` makes, node for node
+    // (with and without reinsertion), or the records made afterwards would not match it.
+    for (size, params) in [
+        (3000, BvhBuildParams::very_slow_build()),
+        (20000, BvhBuildParams::fast_build()),
+    ] {
+        let shapes = random_shapes(size);
+        let ours = build_bvh2(&shapes, params);
+        let mut theirs = obvhs::bvh2::Bvh2::default();
+        obvhs::ploc::PlocBuilder::with_capacity(shapes.len()).build_with_bvh(
+            &mut theirs,
+            params.ploc_search_distance,
+            &shapes,
+            (0..size).collect(),
+            params.sort_precision,
+            params.search_depth_threshold,
+        );
+        let mut reinsertion = obvhs::bvh2::reinsertion::ReinsertionOptimizer::default();
+        reinsertion.run(&mut theirs, params.reinsertion_batch_ratio, None);
+        reinsertion.run(
+            &mut theirs,
+            params.reinsertion_batch_ratio
+                * params.post_collapse_reinsertion_batch_ratio_multiplier,
+            None,
+        );
+        assert_eq!(ours.nodes.len(), theirs.nodes.len());
+        let bytes =
+            |nodes: &[obvhs::bvh2::node::Bvh2Node]| bytemuck::cast_slice::<_, u8>(nodes).to_vec();
+        assert!(
+            bytes(&ours.nodes) == bytes(&theirs.nodes),
+            "{size}: the same nodes"
+        );
+        assert_eq!(ours.primitive_indices, theirs.primitive_indices);
+    }
 }

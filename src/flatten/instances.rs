@@ -9,13 +9,16 @@
 //! triangle is its own area light in world space (the light table's areas and densities), and
 //! the coverage filter reads flat slots; instanced geometry is opaque and emits nothing.
 
-use super::meshes::flatten_mesh;
-use super::{Attributes, Columns, build_tree};
+use super::meshes::{MeshRef, flatten_mesh};
+use super::{Attributes, build_tree, build_tree_of};
 use crate::accel::build::Bvh4;
 use crate::accel::instances::{Instance, Instances, Prototype};
+use crate::accel::leaf_prims::LeafPrim;
 use crate::error::{Error, Result};
+use crate::geometry::Shape;
 use crate::math::{Affine3A, Vec3A};
 use crate::scene::{Mesh, Name, SharedMesh, VertexColors, VertexTangents};
+use obvhs::Boundable;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 use std::collections::{HashMap, HashSet};
@@ -160,36 +163,44 @@ fn prototype(
     path: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<Prototype> {
-    let mut columns = Columns::default();
     let name = name_of(world, request.entity);
     let entity = world.entity(request.entity).expect("the entity exists");
     let (tangents, colors) = (
         entity.get::<&VertexTangents>(),
         entity.get::<&VertexColors>(),
     );
-    let tangents = request.normal_mapped.then_some(tangents.as_deref());
-    let skipped = flatten_mesh(
-        &request.mesh,
+    let tangents = request.normal_mapped.then_some(tangents);
+    let (triangles, skipped) = flatten_mesh(
+        MeshRef::Shared(request.mesh.clone()),
         &Affine3A::IDENTITY,
-        (tangents, colors.as_deref()),
+        (tangents, colors),
         path,
         &name,
-        attributes,
-        &mut columns,
     )?;
     if skipped > 0 {
         warnings.push(format!(
             "mesh '{name}': skipped {skipped} degenerate (zero-area) triangles"
         ));
     }
-    let (bvh, order) = build_tree(&columns.leaf_prims, path)?;
+    // The triangles' boxes and columns are made from the mesh, as for the flat part.
+    let geometry = |k: usize| Shape::Triangle(triangles.geometry(triangles.triangle(k)));
+    let (bvh, order) = build_tree_of(triangles.len(), |k| geometry(k).aabb(), path)?;
+    // A column in slot order, or empty when the scene lacks the attribute.
+    fn column<T: Send>(has: bool, order: &[u32], item: impl Fn(usize) -> T + Sync) -> Vec<T> {
+        if has {
+            order.par_iter().map(|&k| item(k as usize)).collect()
+        } else {
+            Vec::new()
+        }
+    }
+    let t = |k: usize| triangles.triangle(k);
     Ok(Prototype {
-        leaf_prims: Columns::ordered_or_empty(&columns.leaf_prims, &order),
+        leaf_prims: column(true, &order, |k| LeafPrim::new(&geometry(k))),
         bvh,
-        normals: Columns::ordered_or_empty(&columns.normals, &order),
-        uvs: Columns::ordered_or_empty(&columns.uvs, &order),
-        tangents: Columns::ordered_or_empty(&columns.tangents, &order),
-        colors: Columns::ordered_or_empty(&columns.colors, &order),
+        normals: column(attributes.normals, &order, |k| triangles.normals(t(k))),
+        uvs: column(attributes.uvs, &order, |k| triangles.uvs(t(k))),
+        tangents: column(attributes.tangents, &order, |k| triangles.tangents(t(k))),
+        colors: column(attributes.colors, &order, |k| triangles.colors(t(k))),
         material: request.material,
     })
 }

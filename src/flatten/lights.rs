@@ -30,9 +30,7 @@ pub(super) fn scene_lights(
     environment: Option<Environment>,
     scene_radius: f32,
 ) -> SceneLights {
-    let Primitives {
-        groups, columns, ..
-    } = prims;
+    let groups = &prims.groups;
     let mut area_lights = Vec::new();
     let mut textured_emission = Vec::new();
     let mut first_light = Vec::with_capacity(groups.len());
@@ -42,9 +40,7 @@ pub(super) fn scene_lights(
             continue;
         };
         first_light.push(area_lights.len() as u32);
-        let end = groups
-            .get(g + 1)
-            .map_or(columns.leaf_prims.len(), |next| next.first);
+        let end = groups.get(g + 1).map_or(prims.count, |next| next.first);
         for prim in group.first..end {
             let mut radiance = emitter.radiance;
             // A textured emitter is chosen by its mean radiance; shading applies the texel.
@@ -54,10 +50,10 @@ pub(super) fn scene_lights(
                     texture,
                     radiance: emitter.radiance,
                     inverse_mean: materials::inverse_or_zero(mean),
-                    uvs: columns.uvs[prim],
+                    uvs: prims.uvs(prim),
                 }
             }));
-            let shape = columns.leaf_prims[prim].shape();
+            let shape = prims.shape(prim);
             area_lights.push(AreaLight::new(shape, radiance, emitter.two_sided));
         }
     }

@@ -5,12 +5,11 @@
 use super::instances::InstanceRequest;
 use super::lights::validate_emitter;
 use super::materials::{self, MaterialTable};
-use super::{Attributes, Columns, Group, Primitives};
-use crate::accel::leaf_prims::LeafPrim;
+use super::{Group, Primitives, Source};
 use crate::alpha::{self, AlphaRecord};
 use crate::error::{Error, Result};
-use crate::geometry::{Shape, TriangleGeom};
-use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::geometry::TriangleGeom;
+use crate::math::{Affine3A, Mat3A, Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
     AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, SharedMesh, Transform,
     VertexColors, VertexTangents, Volume, mesh_of,
@@ -21,26 +20,26 @@ use std::collections::HashSet;
 use std::path::Path;
 use std::sync::Arc;
 
-/// Appends every mesh of the world to `prims` (one group per mesh), its material to
-/// `materials`.
+/// Appends every mesh of the world to `prims` (one group per mesh, its triangles described,
+/// not copied: see [`MeshPrims`]), its material to `materials`.
 /// Entities drawing a mesh of `instanced` (opaque, not emitting) are not flattened but
 /// returned as instance requests.
-pub(super) fn flatten_meshes(
-    world: &hecs::World,
+pub(super) fn flatten_meshes<'w>(
+    world: &'w hecs::World,
     path: &Path,
     materials: &mut MaterialTable,
-    prims: &mut Primitives,
+    prims: &mut Primitives<'w>,
     instanced: &HashSet<*const Mesh>,
 ) -> Result<Vec<InstanceRequest>> {
     let mut requests = Vec::new();
     let Primitives {
         groups,
-        columns,
+        sources,
+        count,
         warnings,
-        attributes,
         alpha_records,
+        ..
     } = prims;
-    let attributes = *attributes;
     for (
         (entity, name),
         transform,
@@ -61,6 +60,7 @@ pub(super) fn flatten_meshes(
         )>()
         .iter()
     {
+        let own_mesh = mesh.is_some();
         let Some(mesh) = mesh_of(mesh, shared) else {
             continue; // a sphere
         };
@@ -118,22 +118,23 @@ pub(super) fn flatten_meshes(
             None => alpha::OPAQUE,
         };
         groups.push(Group {
-            first: columns.leaf_prims.len(),
+            first: *count,
             material,
             emitter,
             emission_texture,
             alpha,
         });
-        let vertex_attributes = (tangents, colors);
-        let skipped = flatten_mesh(
-            mesh,
-            &transform,
-            vertex_attributes,
-            path,
-            name,
-            attributes,
-            columns,
-        )?;
+        // The mesh's components, borrowed for as long as the world is: the triangles are
+        // read from them when the tree and the columns are made.
+        let mesh = match shared {
+            Some(shared) if !own_mesh => MeshRef::Shared(shared.0.clone()),
+            _ => MeshRef::Component(world.get::<&Mesh>(entity).expect("the query found it")),
+        };
+        let tangents = tangents.map(|_| world.get::<&VertexTangents>(entity).ok());
+        let colors = colors.and_then(|_| world.get::<&VertexColors>(entity).ok());
+        let (triangles, skipped) = flatten_mesh(mesh, &transform, (tangents, colors), path, name)?;
+        *count += triangles.len();
+        sources.push(Source::Mesh(triangles));
         if skipped > 0 {
             let kind = if emitter.is_some() { " emitting" } else { "" };
             warnings.push(format!(
@@ -144,20 +145,57 @@ pub(super) fn flatten_meshes(
     Ok(requests)
 }
 
-/// Appends the valid world-space triangles of `mesh` to `columns` (the vertex attributes
-/// that `attributes` asks for, zero where the mesh has none); returns how many degenerate
-/// triangles were skipped. `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))`
-/// with the file's tangents, `Some(None)` to make them per triangle. `colors` are the mesh's
-/// vertex colours, if it has any.
-pub(super) fn flatten_mesh(
-    mesh: &Mesh,
-    world_from_object: &crate::math::Affine3A,
-    (tangents, colors): (Option<Option<&VertexTangents>>, Option<&VertexColors>),
+/// A mesh's triangle as [`flatten_mesh`] found it, or in the object space of an instance's
+/// prototype: the mesh's components and what to do with them, not copies. The tree's boxes
+/// and every per-slot column are read from it when they are made (so a 2-million-triangle
+/// scene holds no array of shapes or records in flattening order: 128 MB), each computed
+/// the same way every time, bit for bit.
+pub(super) struct MeshPrims<'w> {
+    mesh: MeshRef<'w>,
+    world_from_object: Affine3A,
+    /// The inverse transpose of the linear part, for normals.
+    normal_matrix: Mat3A,
+    /// Whether the transform mirrors (the corners are then taken in the other winding).
+    flips: bool,
+    /// The kept triangles' indices in the mesh, or `None` when every triangle is kept.
+    kept: Option<Vec<u32>>,
+    /// `Some` for normal-mapped meshes: `Some(Some(_))` with the file's tangents,
+    /// `Some(None)` to make them per triangle.
+    tangents: Option<Option<hecs::Ref<'w, VertexTangents>>>,
+    colors: Option<hecs::Ref<'w, VertexColors>>,
+}
+
+/// A mesh component borrowed from the world, or a mesh shared between entities.
+pub(super) enum MeshRef<'w> {
+    Component(hecs::Ref<'w, Mesh>),
+    Shared(Arc<Mesh>),
+}
+
+impl std::ops::Deref for MeshRef<'_> {
+    type Target = Mesh;
+    fn deref(&self) -> &Mesh {
+        match self {
+            MeshRef::Component(mesh) => mesh,
+            MeshRef::Shared(mesh) => mesh,
+        }
+    }
+}
+
+/// Checks `mesh` and finds its valid triangles under `world_from_object`; returns them
+/// described (see [`MeshPrims`]) with how many degenerate triangles were skipped.
+/// `tangents` is `Some` for normal-mapped meshes: `Some(Some(_))` with the file's tangents,
+/// `Some(None)` to make them per triangle. `colors` are the mesh's vertex colours, if it has
+/// any.
+pub(super) fn flatten_mesh<'w>(
+    mesh: MeshRef<'w>,
+    world_from_object: &Affine3A,
+    (tangents, colors): (
+        Option<Option<hecs::Ref<'w, VertexTangents>>>,
+        Option<hecs::Ref<'w, VertexColors>>,
+    ),
     path: &Path,
     name: &str,
-    attributes: Attributes,
-    columns: &mut Columns,
-) -> Result<usize> {
+) -> Result<(MeshPrims<'w>, usize)> {
     let at = || Some(format!("mesh '{name}'"));
     let n = mesh.positions.len();
     if !mesh.normals.is_empty() && mesh.normals.len() != n {
@@ -174,7 +212,7 @@ pub(super) fn flatten_mesh(
             format!("{} texture coordinates for {n} positions", mesh.uvs.len()),
         ));
     }
-    if let Some(VertexColors(c)) = colors
+    if let Some(VertexColors(c)) = colors.as_deref()
         && c.len() != n
     {
         return Err(Error::input(
@@ -190,14 +228,9 @@ pub(super) fn flatten_mesh(
             format!("vertex {bad} is not finite"),
         ));
     }
-    let normal_matrix = world_from_object.matrix3.inverse().transpose();
-    let flips = world_from_object.matrix3.determinant() < 0.0;
-    let world: Vec<Vec3A> = mesh
-        .positions
-        .par_iter()
-        .map(|&p| world_from_object.transform_point3a(p.into()))
-        .collect();
-    if let Some(bad) = world.par_iter().position_first(|p| !p.is_finite()) {
+    if let Some(bad) = (mesh.positions.par_iter())
+        .position_first(|&p| !world_from_object.transform_point3a(p.into()).is_finite())
+    {
         return Err(Error::input(
             path,
             at(),
@@ -207,20 +240,21 @@ pub(super) fn flatten_mesh(
             ),
         ));
     }
-    // Vertex indices in the winding that keeps the front face under mirroring transforms.
-    let corners = |t: usize| {
-        let [a, b, c] = mesh.indices[t];
-        if flips { [a, c, b] } else { [a, b, c] }
+    let mut prims = MeshPrims {
+        mesh,
+        world_from_object: *world_from_object,
+        normal_matrix: world_from_object.matrix3.inverse().transpose(),
+        flips: world_from_object.matrix3.determinant() < 0.0,
+        kept: None,
+        tangents,
+        colors,
     };
-    let geometry = |t: usize| {
-        let p = corners(t).map(|i| world[i as usize]);
-        TriangleGeom::new(p[0], p[1], p[2])
-    };
+    let mesh = &*prims.mesh;
     // Whether the triangle is kept (else: an index out of range, an area overflowing f32 or
     // a zero area; the slow path below tells these apart).
     let kept = |t: usize| {
-        corners(t).iter().all(|&i| (i as usize) < n) && {
-            let double_area = geometry(t).normal_unnormalized().length();
+        prims.corners(t).iter().all(|&i| (i as usize) < n) && {
+            let double_area = prims.geometry(t).normal_unnormalized().length();
             double_area > 0.0 && double_area.is_finite()
         }
     };
@@ -228,63 +262,85 @@ pub(super) fn flatten_mesh(
     // --- Which triangles are kept: in the common case all, found by one parallel count.
     let count = mesh.indices.len();
     let kept_count = (0..count).into_par_iter().filter(|&t| kept(t)).count();
-    let kept_triangles: Option<Vec<u32>> = if kept_count == count {
-        None
-    } else {
-        for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
-            if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
-                return Err(Error::input(
-                    path,
-                    at(),
-                    format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
-                ));
-            }
-            if !geometry(t).normal_unnormalized().length().is_finite() {
-                // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
-                // the triangle cannot be intersected or sampled, and skipping it would change
-                // the image.
-                let p = corners(t).map(|i| Vec3::from(world[i as usize]));
-                return Err(Error::input(
-                    path,
-                    at(),
-                    format!(
-                        "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
-                         are too far apart (scale the model down)",
-                        p[0], p[1], p[2]
-                    ),
-                ));
-            }
+    if kept_count == count {
+        return Ok((prims, 0));
+    }
+    for (t, &[a, b, c]) in mesh.indices.iter().enumerate() {
+        if let Some(&bad) = [a, b, c].iter().find(|&&i| i as usize >= n) {
+            return Err(Error::input(
+                path,
+                at(),
+                format!("triangle {t}: vertex index {bad} out of range ({n} vertices)"),
+            ));
         }
-        Some(
-            (0..count as u32)
-                .into_par_iter()
-                .filter(|&t| kept(t as usize))
-                .collect(),
-        )
-    };
-    // Appends `attribute(t)` for every kept triangle `t` to `column`.
-    fn extend<T: Send>(
-        column: &mut Vec<T>,
-        kept_triangles: &Option<Vec<u32>>,
-        count: usize,
-        attribute: impl Fn(usize) -> T + Sync + Send,
-    ) {
-        match kept_triangles {
-            None => column.par_extend((0..count).into_par_iter().map(attribute)),
-            Some(kept) => column.par_extend(kept.par_iter().map(|&t| attribute(t as usize))),
+        if !prims.geometry(t).normal_unnormalized().length().is_finite() {
+            // Finite vertices, but far enough apart (~1e19) that the area overflows f32:
+            // the triangle cannot be intersected or sampled, and skipping it would change
+            // the image.
+            let p = prims.corners(t).map(|i| Vec3::from(prims.world_point(i)));
+            return Err(Error::input(
+                path,
+                at(),
+                format!(
+                    "triangle {t}: its area (and normal) overflows f32; the vertices {}, {}, {} \
+                     are too far apart (scale the model down)",
+                    p[0], p[1], p[2]
+                ),
+            ));
         }
     }
+    let kept_triangles = (0..count as u32)
+        .into_par_iter()
+        .filter(|&t| kept(t as usize))
+        .collect();
+    prims.kept = Some(kept_triangles);
+    Ok((prims, count - kept_count))
+}
 
-    // --- Geometry and vertex attributes of the kept triangles, written in place.
-    extend(&mut columns.leaf_prims, &kept_triangles, count, |t| {
-        LeafPrim::new(&Shape::Triangle(geometry(t)))
-    });
-    let normals = |t: usize| {
+impl MeshPrims<'_> {
+    /// How many triangles are kept.
+    pub(super) fn len(&self) -> usize {
+        self.kept
+            .as_ref()
+            .map_or(self.mesh.indices.len(), |kept| kept.len())
+    }
+
+    /// The mesh's index of kept triangle `k`.
+    #[inline]
+    pub(super) fn triangle(&self, k: usize) -> usize {
+        self.kept.as_ref().map_or(k, |kept| kept[k] as usize)
+    }
+
+    /// Vertex indices of triangle `t` in the winding that keeps the front face under
+    /// mirroring transforms.
+    #[inline]
+    fn corners(&self, t: usize) -> [u32; 3] {
+        let [a, b, c] = self.mesh.indices[t];
+        if self.flips { [a, c, b] } else { [a, b, c] }
+    }
+
+    /// Vertex `i` in world space.
+    #[inline]
+    fn world_point(&self, i: u32) -> Vec3A {
+        (self.world_from_object).transform_point3a(self.mesh.positions[i as usize].into())
+    }
+
+    /// Triangle `t` in world space.
+    #[inline]
+    pub(super) fn geometry(&self, t: usize) -> TriangleGeom {
+        let p = self.corners(t).map(|i| self.world_point(i));
+        TriangleGeom::new(p[0], p[1], p[2])
+    }
+
+    /// The shading normals of triangle `t` in world space (zero for flat shading).
+    pub(super) fn normals(&self, t: usize) -> [Vec3; 3] {
+        let mesh = &*self.mesh;
         if mesh.normals.is_empty() {
             return [Vec3::ZERO; 3];
         }
-        let normals = corners(t).map(|i| {
-            Vec3::from(normal_matrix * Vec3A::from(mesh.normals[i as usize])).normalize_or_zero()
+        let normals = self.corners(t).map(|i| {
+            Vec3::from(self.normal_matrix * Vec3A::from(mesh.normals[i as usize]))
+                .normalize_or_zero()
         });
         // A shading normal that could not be normalised falls back to flat shading.
         if normals.contains(&Vec3::ZERO) {
@@ -292,7 +348,7 @@ pub(super) fn flatten_mesh(
         }
         // Each turned to the triangle's side before they are interpolated: a vertex shared by
         // faces that face opposite ways (a two-sided sheet) has a normal of either sign.
-        let facing = geometry(t).normal_unnormalized();
+        let facing = self.geometry(t).normal_unnormalized();
         normals.map(|n| {
             if Vec3A::from(n).dot(facing) < 0.0 {
                 -n
@@ -300,50 +356,48 @@ pub(super) fn flatten_mesh(
                 n
             }
         })
-    };
-    let uvs = |t: usize| {
-        if mesh.uvs.is_empty() {
+    }
+
+    /// The texture coordinates of triangle `t` (zero without).
+    pub(super) fn uvs(&self, t: usize) -> [Vec2; 3] {
+        if self.mesh.uvs.is_empty() {
             [Vec2::ZERO; 3]
         } else {
-            corners(t).map(|i| mesh.uvs[i as usize])
+            self.corners(t).map(|i| self.mesh.uvs[i as usize])
         }
-    };
-    if attributes.normals {
-        extend(&mut columns.normals, &kept_triangles, count, normals);
     }
-    if attributes.uvs {
-        extend(&mut columns.uvs, &kept_triangles, count, uvs);
-    }
-    if attributes.colors {
-        // Linear RGB; the alpha channel is coverage, not colour.
-        let colors = |t: usize| match colors {
-            Some(VertexColors(c)) => corners(t).map(|i| c[i as usize]),
+
+    /// The linear RGBA vertex colours of triangle `t` (white without); the alpha channel is
+    /// coverage, not colour.
+    pub(super) fn colors(&self, t: usize) -> [Vec4; 3] {
+        match self.colors.as_deref() {
+            Some(VertexColors(c)) => self.corners(t).map(|i| c[i as usize]),
             None => [Vec4::ONE; 3],
-        };
-        extend(&mut columns.colors, &kept_triangles, count, colors);
+        }
     }
-    if attributes.tangents {
-        // Tangents: the file's (the linear part carries them; a mirroring transform flips
-        // the handedness), else one per triangle from the UVs.
-        let tangents = |t: usize| match tangents {
+
+    /// The tangents of triangle `t` in world space: the file's (the linear part carries
+    /// them; a mirroring transform flips the handedness), else one per triangle from the
+    /// UVs; zero for meshes without a normal map.
+    pub(super) fn tangents(&self, t: usize) -> [Vec4; 3] {
+        match &self.tangents {
             None => [Vec4::ZERO; 3],
-            Some(Some(VertexTangents(tangents)))
-                if tangents.len() == n && normals(t)[0] != Vec3::ZERO =>
+            Some(Some(tangents))
+                if tangents.0.len() == self.mesh.positions.len()
+                    && self.normals(t)[0] != Vec3::ZERO =>
             {
-                corners(t).map(|i| {
-                    let t = tangents[i as usize];
-                    let xyz = world_from_object.matrix3 * Vec3A::from(t.truncate());
-                    let w = if (t.w < 0.0) != flips { -1.0 } else { 1.0 };
+                self.corners(t).map(|i| {
+                    let t = tangents.0[i as usize];
+                    let xyz = self.world_from_object.matrix3 * Vec3A::from(t.truncate());
+                    let w = if (t.w < 0.0) != self.flips { -1.0 } else { 1.0 };
                     xyz.normalize_or_zero().extend(w)
                 })
             }
             Some(_) => {
-                let p = corners(t).map(|i| world[i as usize]);
+                let p = self.corners(t).map(|i| self.world_point(i));
                 let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
-                [materials::triangle_tangent(p, uvs(t), n); 3]
+                [materials::triangle_tangent(p, self.uvs(t), n); 3]
             }
-        };
-        extend(&mut columns.tangents, &kept_triangles, count, tangents);
+        }
     }
-    Ok(count - kept_count)
 }

@@ -23,19 +23,22 @@ use crate::accel::occluders;
 use crate::alpha::AlphaRecord;
 use crate::error::{Error, Result};
 use crate::geometry::Shape;
+use crate::geometry::sphere::SphereGeom;
 use crate::math::{Rgb, Vec2, Vec3, Vec4};
 use crate::render_scene::{NO_EMITTER, RenderScene};
 use crate::scene::{Emitter, MaterialTextures, Mesh, SharedMesh, VertexColors, mesh_of};
 use crate::texture::TextureRef;
 use materials::MaterialTable;
+use meshes::MeshPrims;
 use rayon::prelude::*;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-/// Peak resident bytes per primitive that flattening adds to the world it reads: the leaf
-/// records, the per-slot columns, the BVH build and its leaf layouts (a 2-million-triangle OBJ
-/// peaks at about 240 bytes per triangle in all, file and world included; see
-/// docs/performance.md, "Memory per triangle").
+/// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
+/// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds about
+/// 150 bytes per triangle at the build and peaks at about 170 in all, file and world
+/// included, 213 with normals and texture coordinates; see docs/performance.md, "Memory per
+/// triangle"). Kept with a margin.
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
 /// they are filled): the 2-million-triangle OBJ needs `ulimit -v` of about 1.1 GB where the
@@ -103,9 +106,14 @@ pub fn flatten_with(
     spheres::flatten_spheres(world, path, &mut materials, &mut prims)?;
     crate::memory::trace_phase("shapes");
 
-    // BVH order: every per-primitive column is permuted once, so slots index them directly.
+    // BVH order: every per-primitive column is made once in slot order (none is kept in
+    // flattening order), so slots index them directly.
     let bvh_start = Instant::now();
-    let (bvh, order) = build_tree(&prims.columns.leaf_prims, path)?;
+    let (bvh, order) = build_tree_of(
+        prims.count,
+        |p| obvhs::Boundable::aabb(&prims.shape(p)),
+        path,
+    )?;
     crate::memory::trace_phase("4-wide bvh");
     // The instanced meshes: their own trees and the top-level tree over their instances.
     let instances = instances::build(
@@ -137,7 +145,12 @@ pub fn flatten_with(
     let occluders = if alpha_tested || environment.is_some() || instances.is_some() {
         None
     } else {
-        occluders::occluders_of_records(&prims.columns.leaf_prims, &delta_lights)
+        occluders::occluders_of(
+            prims.count,
+            prims.triangle_count(),
+            |p| prims.shape(p),
+            &delta_lights,
+        )
     };
     let scene_radius = lights::scene_radius(scene_bounds);
     let lights = lights::scene_lights(&prims, delta_lights, environment, scene_radius);
@@ -145,16 +158,35 @@ pub fn flatten_with(
     // Per-slot columns.
     let (material, emitter, alpha_of_slot) =
         slot_materials_lights_and_alpha(&prims.groups, &lights.first_light, &order, alpha_tested);
-    // One record per slot, which also gives back the shape (see `RenderScene::shape`): the
-    // records made in flattening order are put in slot order in place, so that no second
-    // array of them (or of the shapes: 128 MB at 2M triangles) is alive at once.
-    let mut leaf_prims = std::mem::take(&mut prims.columns.leaf_prims);
-    permute_in_place(&mut leaf_prims, &order);
+    // One record per slot, which also gives back the shape (see `RenderScene::shape`), made
+    // in slot order from the meshes: no array of records or shapes in flattening order
+    // (128 MB at 2M triangles) is alive during the build or beside this one.
+    let leaf_prims = prims.column(
+        &order,
+        |mesh, t| LeafPrim::new(&Shape::Triangle(mesh.geometry(t))),
+        |sphere| LeafPrim::new(&Shape::Sphere(*sphere)),
+    );
     crate::memory::trace_phase("leaf prims");
+    let attributes = prims.attributes;
+    let vertex_normals = prims.column_or_zeros(
+        attributes.normals,
+        &order,
+        MeshPrims::normals,
+        [Vec3::ZERO; 3],
+    );
+    let vertex_uvs = prims.column_or_zeros(attributes.uvs, &order, MeshPrims::uvs, [Vec2::ZERO; 3]);
+    let vertex_colors = if attributes.colors {
+        prims.column(&order, MeshPrims::colors, |_| [Vec4::ONE; 3])
+    } else {
+        Vec::new()
+    };
+    let vertex_tangents = if attributes.tangents {
+        prims.column(&order, MeshPrims::tangents, |_| [Vec4::ZERO; 3])
+    } else {
+        Vec::new()
+    };
     let Primitives {
-        columns,
         warnings,
-        attributes,
         alpha_records,
         ..
     } = prims;
@@ -169,18 +201,10 @@ pub fn flatten_with(
         alpha_of_slot,
         alpha_records,
         leaf_prims,
-        vertex_normals: Columns::ordered(columns.normals, &order),
-        vertex_uvs: Columns::ordered(columns.uvs, &order),
-        vertex_colors: if attributes.colors {
-            Columns::ordered(columns.colors, &order)
-        } else {
-            Vec::new()
-        },
-        vertex_tangents: if attributes.tangents {
-            Columns::ordered(columns.tangents, &order)
-        } else {
-            Vec::new()
-        },
+        vertex_normals,
+        vertex_uvs,
+        vertex_colors,
+        vertex_tangents,
         material,
         emitter,
         material_textures: materials.surface_textures(),
@@ -229,22 +253,8 @@ struct Group {
     alpha: u32,
 }
 
-/// Per-primitive columns in flattening order (before BVH ordering). A vertex-attribute
-/// column is left empty when no primitive of the scene has that attribute: the BVH-ordered
-/// column is then all zeros, made without touching memory per primitive.
-#[derive(Default)]
-struct Columns {
-    /// The primitives' leaf records, which also give back their shapes (and boxes for the
-    /// BVH build): one 64-byte array serves the build, the lights and the render scene.
-    leaf_prims: Vec<LeafPrim>,
-    normals: Vec<[Vec3; 3]>,
-    uvs: Vec<[Vec2; 3]>,
-    tangents: Vec<[Vec4; 3]>,
-    /// Linear RGBA vertex colours; white for primitives without.
-    colors: Vec<[Vec4; 3]>,
-}
-
-/// Which vertex attributes some primitive of the scene has (and so which [`Columns`] are filled).
+/// Which vertex attributes some primitive of the scene has (and so which per-slot columns are
+/// made).
 #[derive(Clone, Copy)]
 struct Attributes {
     normals: bool,
@@ -254,51 +264,23 @@ struct Attributes {
     colors: bool,
 }
 
-impl Columns {
-    /// Appends a primitive without vertex attributes (a sphere).
-    fn push_plain(&mut self, shape: Shape, attributes: Attributes) {
-        self.leaf_prims.push(LeafPrim::new(&shape));
-        if attributes.normals {
-            self.normals.push([Vec3::ZERO; 3]);
-        }
-        if attributes.uvs {
-            self.uvs.push([Vec2::ZERO; 3]);
-        }
-        if attributes.tangents {
-            self.tangents.push([Vec4::ZERO; 3]);
-        }
-        if attributes.colors {
-            self.colors.push([Vec4::ONE; 3]);
-        }
-    }
-
-    /// The column `unordered` in BVH slot order, or empty if the scene lacks it.
-    fn ordered_or_empty<T: Copy + Send + Sync>(unordered: &[T], order: &[u32]) -> Vec<T> {
-        if unordered.is_empty() {
-            Vec::new()
-        } else {
-            order.par_iter().map(|&i| unordered[i as usize]).collect()
-        }
-    }
-
-    /// The column `column` put in BVH slot order in place (no second copy: a 2-million-triangle
-    /// file's normals and UVs are 120 MB), or zeros if the scene lacks it.
-    fn ordered<T: Copy + bytemuck::Zeroable>(mut column: Vec<T>, order: &[u32]) -> Vec<T> {
-        if column.is_empty() {
-            bytemuck::zeroed_vec(order.len())
-        } else {
-            permute_in_place(&mut column, order);
-            column
-        }
-    }
+/// Where a group's primitives come from.
+enum Source<'w> {
+    /// A mesh's kept triangles.
+    Mesh(MeshPrims<'w>),
+    /// One sphere, in world space.
+    Sphere(SphereGeom),
 }
 
-/// The primitives in flattening order, as the entities are read.
-struct Primitives {
+/// The primitives in flattening order, as the entities are read: described, not copied (see
+/// [`MeshPrims`]); the tree's boxes and the per-slot columns are made from them.
+struct Primitives<'w> {
     /// One group per entity, in order.
     groups: Vec<Group>,
-    /// Per primitive, its shape and vertex attributes.
-    columns: Columns,
+    /// Per group, its primitives.
+    sources: Vec<Source<'w>>,
+    /// The number of primitives of all groups.
+    count: usize,
     /// Things skipped (degenerate triangles, ...), for the user to see.
     warnings: Vec<String>,
     /// Which vertex attributes the scene has.
@@ -307,14 +289,85 @@ struct Primitives {
     alpha_records: Vec<AlphaRecord>,
 }
 
-impl Primitives {
+impl<'w> Primitives<'w> {
     fn new(attributes: Attributes) -> Self {
         Primitives {
             groups: Vec::new(),
-            columns: Columns::default(),
+            sources: Vec::new(),
+            count: 0,
             warnings: Vec::new(),
             attributes,
             alpha_records: Vec::new(),
+        }
+    }
+
+    /// The source of primitive `prim` and, for a mesh, the mesh's index of its triangle.
+    #[inline]
+    fn locate(&self, prim: usize) -> (&Source<'w>, usize) {
+        // Groups whose triangles were all skipped share their `first` with the next group.
+        let g = self.groups.partition_point(|g| g.first <= prim) - 1;
+        let source = &self.sources[g];
+        match source {
+            Source::Mesh(mesh) => (source, mesh.triangle(prim - self.groups[g].first)),
+            Source::Sphere(_) => (source, 0),
+        }
+    }
+
+    /// The world-space shape of primitive `prim`.
+    #[inline]
+    fn shape(&self, prim: usize) -> Shape {
+        match self.locate(prim) {
+            (Source::Mesh(mesh), t) => Shape::Triangle(mesh.geometry(t)),
+            (Source::Sphere(sphere), _) => Shape::Sphere(*sphere),
+        }
+    }
+
+    /// The texture coordinates of primitive `prim` (zero for a sphere).
+    fn uvs(&self, prim: usize) -> [Vec2; 3] {
+        match self.locate(prim) {
+            (Source::Mesh(mesh), t) => mesh.uvs(t),
+            (Source::Sphere(_), _) => [Vec2::ZERO; 3],
+        }
+    }
+
+    /// How many of the primitives are triangles.
+    fn triangle_count(&self) -> usize {
+        let spheres = (self.sources.iter())
+            .filter(|s| matches!(s, Source::Sphere(_)))
+            .count();
+        self.count - spheres
+    }
+
+    /// A per-slot column: `of_triangle(mesh, t)` of each slot's triangle, `of_sphere` of
+    /// each sphere, in the slot order `order`.
+    fn column<T: Send>(
+        &self,
+        order: &[u32],
+        of_triangle: impl Fn(&MeshPrims<'w>, usize) -> T + Sync,
+        of_sphere: impl Fn(&SphereGeom) -> T + Sync,
+    ) -> Vec<T> {
+        order
+            .par_iter()
+            .map(|&prim| match self.locate(prim as usize) {
+                (Source::Mesh(mesh), t) => of_triangle(mesh, t),
+                (Source::Sphere(sphere), _) => of_sphere(sphere),
+            })
+            .collect()
+    }
+
+    /// A vertex-attribute column in slot order (spheres get `none`), or zeros made without
+    /// touching memory per slot when no primitive of the scene has the attribute (`has`).
+    fn column_or_zeros<T: Copy + Send + Sync + bytemuck::Zeroable>(
+        &self,
+        has: bool,
+        order: &[u32],
+        of_triangle: impl Fn(&MeshPrims<'w>, usize) -> T + Sync,
+        none: T,
+    ) -> Vec<T> {
+        if has {
+            self.column(order, of_triangle, |_| none)
+        } else {
+            bytemuck::zeroed_vec(order.len())
         }
     }
 }
@@ -341,34 +394,19 @@ fn any_mesh(world: &hecs::World, test: impl Fn(&Mesh) -> bool) -> bool {
         || world.query::<&SharedMesh>().iter().any(|s| test(&s.0))
 }
 
-/// Makes `items[slot]` the item that was at `order[slot]`, for a permutation `order`, by
-/// walking its cycles (one bit of bookkeeping per item).
-fn permute_in_place<T: Copy>(items: &mut [T], order: &[u32]) {
-    debug_assert_eq!(items.len(), order.len());
-    let mut placed = vec![false; items.len()];
-    for start in 0..items.len() {
-        if placed[start] {
-            continue;
-        }
-        let first = items[start];
-        let mut slot = start;
-        loop {
-            placed[slot] = true;
-            let from = order[slot] as usize;
-            if from == start {
-                items[slot] = first;
-                break;
-            }
-            items[slot] = items[from];
-            slot = from;
-        }
-    }
-}
-
 /// The BVH over `items` (primitives or instance boxes) and the map from slots to items, or an
 /// error for geometry too degenerate for it.
 fn build_tree<T: obvhs::Boundable>(items: &[T], path: &Path) -> Result<(Bvh4, Vec<u32>)> {
-    bvh::build_bvh(items).ok_or_else(|| {
+    build_tree_of(items.len(), |i| items[i].aabb(), path)
+}
+
+/// [`build_tree`] over `count` primitives whose boxes `box_of` gives.
+fn build_tree_of(
+    count: usize,
+    box_of: impl Fn(usize) -> obvhs::aabb::Aabb + Sync,
+    path: &Path,
+) -> Result<(Bvh4, Vec<u32>)> {
+    bvh::build_bvh_of(count, box_of).ok_or_else(|| {
         Error::input(
             path,
             None,
@@ -442,21 +480,5 @@ mod tests {
         }
         sides.sort_by(f32::total_cmp);
         assert_eq!(sides, [-1.0, 1.0]);
-    }
-
-    #[test]
-    fn permuting_in_place_matches_gathering() {
-        // A permutation with cycles of several lengths and fixed points.
-        let n = 1000u32;
-        let order: Vec<u32> = (0..n).map(|i| (i * 377 + 11) % n).collect();
-        let items: Vec<u64> = (0..n as u64).map(|i| i * i + 7).collect();
-        let gathered: Vec<u64> = order.iter().map(|&i| items[i as usize]).collect();
-        let mut permuted = items.clone();
-        permute_in_place(&mut permuted, &order);
-        assert_eq!(permuted, gathered);
-        let identity: Vec<u32> = (0..n).collect();
-        let mut same = items.clone();
-        permute_in_place(&mut same, &identity);
-        assert_eq!(same, items);
     }
 }

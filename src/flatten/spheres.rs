@@ -3,9 +3,9 @@
 
 use super::lights::validate_emitter;
 use super::materials::MaterialTable;
-use super::{Group, Primitives};
+use super::{Group, Primitives, Source};
 use crate::error::{Error, Result};
-use crate::geometry::{Shape, SphereGeom};
+use crate::geometry::SphereGeom;
 use crate::math::Vec3;
 use crate::scene::{Emitter, Material, Name, Sphere, Transform, Volume};
 use std::path::Path;
@@ -18,13 +18,6 @@ pub(super) fn flatten_spheres(
     materials: &mut MaterialTable,
     prims: &mut Primitives,
 ) -> Result<()> {
-    let Primitives {
-        groups,
-        columns,
-        attributes,
-        ..
-    } = prims;
-    let attributes = *attributes;
     for (name, transform, sphere, (material, volume), emitter) in world
         .query::<(
             Option<&Name>,
@@ -64,14 +57,15 @@ pub(super) fn flatten_spheres(
         }
         let material = materials.index(material, None, volume);
         let emitter = validate_emitter(emitter, path, name)?;
-        groups.push(Group {
-            first: columns.leaf_prims.len(),
+        prims.groups.push(Group {
+            first: prims.count,
             material,
             emitter,
             emission_texture: None,
             alpha: crate::alpha::OPAQUE,
         });
-        columns.push_plain(Shape::Sphere(geom), attributes);
+        prims.sources.push(Source::Sphere(geom));
+        prims.count += 1;
     }
     Ok(())
 }
