@@ -338,24 +338,23 @@ impl MeshPrims<'_> {
         if mesh.normals.is_empty() {
             return [Vec3::ZERO; 3];
         }
+        // Each turned to the triangle's side before they are interpolated: a vertex shared by
+        // faces that face opposite ways (a two-sided sheet) has a normal of either sign. The
+        // side is taken in object space, as instanced prototypes (made there) take it: a
+        // shearing transform does not keep the sign of a dot product.
+        let [a, b, c] = mesh.indices[t];
+        let p = |i: u32| Vec3A::from(mesh.positions[i as usize]);
+        let facing = (p(b) - p(a)).cross(p(c) - p(a));
         let normals = self.corners(t).map(|i| {
-            Vec3::from(self.normal_matrix * Vec3A::from(mesh.normals[i as usize]))
-                .normalize_or_zero()
+            let n = Vec3A::from(mesh.normals[i as usize]);
+            let n = if n.dot(facing) < 0.0 { -n } else { n };
+            Vec3::from(self.normal_matrix * n).normalize_or_zero()
         });
         // A shading normal that could not be normalised falls back to flat shading.
         if normals.contains(&Vec3::ZERO) {
             return [Vec3::ZERO; 3];
         }
-        // Each turned to the triangle's side before they are interpolated: a vertex shared by
-        // faces that face opposite ways (a two-sided sheet) has a normal of either sign.
-        let facing = self.geometry(t).normal_unnormalized();
-        normals.map(|n| {
-            if Vec3A::from(n).dot(facing) < 0.0 {
-                -n
-            } else {
-                n
-            }
-        })
+        normals
     }
 
     /// The texture coordinates of triangle `t` (zero without).
