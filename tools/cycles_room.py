@@ -370,7 +370,7 @@ def cmd_table(args):
     print("\nratios wavetrace / Cycles (medians): at the budget, and of the error x seconds "
           "(equal time when a renderer overran its budget)")
     for budget in args.budgets:
-        for mode in (FIXED, ADAPTIVE):
+        for mode in args.modes:
             w, c = med[(budget, mode, "wavetrace")], med[(budget, mode, "cycles")]
             print(f"{budget:g} s {mode}: MSE {w['mse'] / c['mse']:.3f}, relative MSE "
                   f"{w['rel'] / c['rel']:.3f}; MSE x s {w['mse_s'] / c['mse_s']:.3f}, "
