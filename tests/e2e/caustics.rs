@@ -158,16 +158,19 @@ fn assert_parts_agree(
     }
 }
 
+/// Asserts that `lit` (named `label`), rendered at `spp.0` samples with light paths, is lit
+/// and has the image mean and centre block of its mirrored twin rendered at `spp.1`.
+fn assert_lit_as_its_twin(label: &str, lit: &RenderScene, twin: &RenderScene, spp: (u32, u32)) {
+    let mirrored = estimates(lit, &settings(spp.0, 1.0));
+    let twin = estimates(twin, &settings(spp.1, 1.0));
+    assert!(mirrored[0].0[0] > 0.02, "{label} is lit: {:?}", mirrored[0]);
+    assert_parts_agree(label, ["image", "centre"], mirrored, twin);
+}
+
 #[test]
 fn area_light_through_a_mirror_equals_its_mirror_image() {
-    let mirrored = estimates(&area_light_scene(false), &settings(256, 1.0));
-    let twin = estimates(&area_light_scene(true), &settings(64, 1.0));
-    assert!(
-        mirrored[0].0[0] > 0.02,
-        "the floor is lit: {:?}",
-        mirrored[0]
-    );
-    assert_parts_agree("area light", ["image", "centre"], mirrored, twin);
+    let (lit, twin) = (area_light_scene(false), area_light_scene(true));
+    assert_lit_as_its_twin("the floor (area light)", &lit, &twin, (256, 64));
 }
 
 #[test]
@@ -176,14 +179,8 @@ fn point_light_through_a_mirror_equals_its_mirror_image() {
     // Without light paths the path tracer cannot find this light through the mirror.
     let dark = render_image(&mirrored_scene, &settings(4, 0.0));
     assert!(dark.pixels.iter().all(|p| *p == Rgb::ZERO));
-    let mirrored = estimates(&mirrored_scene, &settings(64, 1.0));
-    let twin = estimates(&point_light_scene(true), &settings(16, 1.0));
-    assert!(
-        mirrored[0].0[0] > 0.02,
-        "the floor is lit: {:?}",
-        mirrored[0]
-    );
-    assert_parts_agree("point light", ["image", "centre"], mirrored, twin);
+    let twin = point_light_scene(true);
+    assert_lit_as_its_twin("the floor (point light)", &mirrored_scene, &twin, (64, 16));
 }
 
 /// A box with a small ceiling light and a glass sphere whose caustic falls on the floor in
@@ -335,14 +332,8 @@ black = { type = "diffuse", albedo = [0.0, 0.0, 0.0] }
 fn wall_lit_through_a_mirror_after_a_diffuse_bounce_equals_its_mirror_image() {
     // With the connections' weight set to 1 (counting these paths twice) the image mean
     // is 1.4% too high: 5.4 standard errors at these sample counts.
-    let mirrored = estimates(&wall_scene(false), &settings(512, 1.0));
-    let twin = estimates(&wall_scene(true), &settings(128, 1.0));
-    assert!(
-        mirrored[0].0[0] > 0.02,
-        "the wall is lit: {:?}",
-        mirrored[0]
-    );
-    assert_parts_agree("wall", ["image", "centre"], mirrored, twin);
+    let (lit, twin) = (wall_scene(false), wall_scene(true));
+    assert_lit_as_its_twin("the wall", &lit, &twin, (512, 128));
 }
 
 /// Caustics seen after a diffuse bounce, estimator against estimator: in the glass sphere's
