@@ -34,14 +34,6 @@ pub struct LeafPrim {
     d: Vec4,
 }
 
-/// The BVH build reads a record's box from its shape, so the records made in flattening
-/// order serve the build without an array of shapes beside them.
-impl obvhs::Boundable for LeafPrim {
-    fn aabb(&self) -> obvhs::aabb::Aabb {
-        obvhs::Boundable::aabb(&self.shape())
-    }
-}
-
 impl LeafPrim {
     /// The record of no primitive: its determinant is zero, so no ray hits it.
     const NONE: LeafPrim = LeafPrim {
