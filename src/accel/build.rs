@@ -28,6 +28,8 @@ pub(super) const MAX_LEAF_SIZE: u32 = 4;
 /// overlapping triangles, where merging leaves makes every ray test most of the walls
 /// (measured on the seed room: 14 primitive tests per shadow ray with 4, 0.8 with 1).
 const SMALL_SCENE: usize = 4096;
+/// Scenes with fewer primitives get obvhs's medium build (with reinsertion passes).
+const MEDIUM_SCENE: usize = 1 << 18;
 
 /// A node with up to four children.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -126,6 +128,8 @@ pub(super) fn build_bvh_in_chunks_of(
 ) -> Option<(Bvh4, Vec<u32>)> {
     let (params, max_leaf_size) = if count < SMALL_SCENE {
         (BvhBuildParams::very_slow_build(), 1)
+    } else if count < MEDIUM_SCENE {
+        (BvhBuildParams::medium_build(), MAX_LEAF_SIZE)
     } else {
         let params = BvhBuildParams {
             reinsertion_batch_ratio: 0.0,
