@@ -72,9 +72,8 @@ use std::f32::consts::{FRAC_1_PI, PI};
 /// of the pass, and the light vertices its vertices connect to.
 #[derive(Clone, Copy, Debug)]
 pub struct CausticWeights<'a> {
-    /// Light paths traced in the pass (the `n` of the balance heuristic).
-    pub light_paths: f32,
-    /// The same, exactly: the range of a camera vertex's pick among them.
+    /// Light paths traced in the pass: the `n` of the balance heuristic, and the range of a
+    /// camera vertex's pick among them.
     pub light_path_count: u64,
     /// The camera, for the density of its rays.
     pub camera: PinholeCamera,

@@ -122,7 +122,6 @@ pub fn render(
             );
             stats.light_time += start.elapsed();
             Some(CausticWeights {
-                light_paths: light_paths as f32,
                 light_path_count: light_paths,
                 camera,
                 connections,

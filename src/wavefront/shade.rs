@@ -413,7 +413,7 @@ fn shade_one<const THROUGH: bool>(
             // bounce follows, and kept through the delta bounces. The camera connects to the
             // pass's n light paths; a non-delta vertex before x1 connects to one light vertex;
             // after a delta vertex nothing connects to x1.
-            -caustics.light_paths
+            -(caustics.light_path_count as f32)
                 * light_paths::camera_vertex_factor(
                     ng.dot(wi).abs(),
                     sample.pdf,
