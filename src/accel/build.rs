@@ -1,8 +1,8 @@
 //! The BVH build: obvhs's binary tree (PLOC + reinsertion) over the primitives' boxes,
 //! collapsed into the 4-wide [`Bvh4`] that the traversals walk; leaves are contiguous runs
 //! of slots, and `order` maps slots back to the input primitives. Large scenes are built in
-//! spatial chunks joined under a small top tree, so that the build's scratch is bounded by
-//! the chunk, not the scene.
+//! chunks joined under a small top tree ([`super::chunks`]), so that the build's scratch is
+//! bounded by the chunk, not the scene.
 
 use crate::math::{Vec3A, Vec4};
 use obvhs::BvhBuildParams;
@@ -46,7 +46,7 @@ pub struct Node4 {
 
 impl Node4 {
     /// A node whose four lanes are unused (empty boxes, no children), to be filled in.
-    const EMPTY: Node4 = Node4 {
+    pub(super) const EMPTY: Node4 = Node4 {
         bounds: [
             Vec4::INFINITY,
             Vec4::INFINITY,
@@ -91,13 +91,11 @@ impl Bvh4 {
 }
 
 /// Scenes with more primitives are built in chunks of at most this many (see
-/// [`build_bvh_in_chunks_of`]), so that obvhs's scratch (about 140 bytes per primitive:
-/// binary nodes, its two node lists, Morton codes) is bounded by the chunk instead of
-/// growing with the scene: 2^23 primitives is about 1.1 GiB of scratch. Chunks cost speed
-/// (chunks of 2^19 on a 1.3M-triangle scene: 23% more instructions per ray, a 52% longer
-/// build; docs/performance.md), so only scenes this large, where the build's memory decides
-/// whether they fit, take them.
-const CHUNK_SIZE: usize = 1 << 23;
+/// [`super::chunks`]), so that obvhs's scratch (about 144 bytes per primitive: binary
+/// nodes, its two node lists, Morton codes) is bounded by the chunk instead of growing with
+/// the scene: 72 MiB with 2^19, where a whole build of 2M triangles needs 275 MiB beside the
+/// scene. The chunked tree traces as fast as the whole one (docs/performance.md).
+const CHUNK_SIZE: usize = 1 << 19;
 
 /// Builds the BVH over `shapes` (primitives, or the world boxes of instances). Returns it
 /// with the map from BVH slots to shapes: slot `i` holds `shapes[order[i]]`. `None` if the
@@ -117,10 +115,9 @@ pub fn build_bvh_of(
 }
 
 /// [`build_bvh_of`] with chunks of at most `chunk_size` primitives: a scene that fits in one
-/// is built whole; a larger one is ordered by the Morton codes of its boxes' centres, cut
-/// into spatially coherent runs of at most `chunk_size` (see [`chunk_ranges`]), each built
-/// and collapsed on its own (obvhs's scratch freed in between), and joined under a small
-/// tree built over the chunks' boxes. The result is one ordinary [`Bvh4`].
+/// is built whole; a larger one is cut into chunks, each built and collapsed on its own
+/// (obvhs's scratch freed in between), and joined under a small top tree (see
+/// [`super::chunks`]). The result is one ordinary [`Bvh4`].
 pub(super) fn build_bvh_in_chunks_of(
     count: usize,
     box_of: &(impl Fn(usize) -> Aabb + Sync),
@@ -137,10 +134,16 @@ pub(super) fn build_bvh_in_chunks_of(
         };
         (params, MAX_LEAF_SIZE)
     };
+    // Large scenes of small primitives: obvhs scales its Morton cells to the scene's box
+    // on each axis, which for a flat box (a terrain, a floor of furniture) makes the cells
+    // flat slabs and the curve's neighbours far apart; cubes keep them close (the 2M-triangle
+    // grid in the room: 8% fewer instructions per ray). Smaller scenes keep obvhs's cells:
+    // Cycles' export of the room traced 11% slower with cubes.
+    let large_scene = count >= MEDIUM_SCENE;
     let mut bvh = Bvh4::default();
     let mut order = Vec::with_capacity(count);
     if count <= chunk_size.max(1) {
-        let bvh2 = build_bvh2_of(count, box_of, params);
+        let bvh2 = build_bvh2_of(count, box_of, params, large_scene);
         crate::memory::trace_phase("binary bvh");
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).
@@ -154,9 +157,15 @@ pub(super) fn build_bvh_in_chunks_of(
             bvh.depth = tree.collapse_in_parallel(&mut bvh.nodes, &mut order);
         }
     } else {
-        let chunks = build_chunks(count, box_of, chunk_size, params, max_leaf_size);
+        bvh.depth = super::chunks::build_in_chunks(
+            count,
+            box_of,
+            chunk_size,
+            (params, max_leaf_size, large_scene),
+            &mut bvh.nodes,
+            &mut order,
+        );
         crate::memory::trace_phase("binary bvh");
-        bvh.depth = join_chunks(chunks, &mut bvh.nodes, &mut order);
     }
     bvh.leaf_lanes = bvh
         .nodes
@@ -166,200 +175,35 @@ pub(super) fn build_bvh_in_chunks_of(
     (bvh.depth <= MAX_DEPTH).then_some((bvh, order))
 }
 
-/// One chunk of a chunked build: its tree collapsed on its own, and the box around it.
-struct Chunk {
-    collapsed: Collapsed,
-    bounds: Aabb,
-}
-
-/// The chunks of the `count` primitives whose boxes `box_of` gives (see [`chunk_ranges`]),
-/// each built and collapsed in turn: only one chunk's binary tree is alive at a time.
-fn build_chunks(
-    count: usize,
-    box_of: &(impl Fn(usize) -> Aabb + Sync),
-    chunk_size: usize,
-    params: BvhBuildParams,
-    max_leaf_size: u32,
-) -> Vec<Chunk> {
-    let centroid_bounds = (0..count)
-        .into_par_iter()
-        .map(|i| {
-            let centre = box_of(i).center();
-            Aabb::new(centre, centre)
-        })
-        .reduce(Aabb::empty, |a, b| a.union(&b));
-    // Extent 0 on an axis (a flat scene) would divide by zero: every code is 0 there.
-    let extent = centroid_bounds.diagonal();
-    let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), extent.recip(), Vec3A::ZERO);
-    // Codes with the primitive's index, so that equal codes sort the same on every run.
-    let mut keys: Vec<(u64, u32)> = (0..count)
-        .into_par_iter()
-        .map(|i| {
-            let unit = (box_of(i).center() - centroid_bounds.min) * scale;
-            (morton_code(unit), i as u32)
-        })
-        .collect();
-    keys.par_sort_unstable();
-    let mut ranges = Vec::new();
-    chunk_ranges(&keys, 0..keys.len(), chunk_size, &mut ranges);
-    let sorted: Vec<u32> = keys.iter().map(|&(_, i)| i).collect();
-    drop(keys);
-    ranges
-        .into_iter()
-        .map(|range| {
-            let indices = &sorted[range];
-            let bvh2 = build_bvh2_of(indices.len(), &|k| box_of(indices[k] as usize), params);
-            let tree = BinaryTree {
-                bvh2: &bvh2,
-                max_leaf_size,
-                node_cost: params.collapse_traversal_cost,
-            };
-            let mut collapsed = Collapsed::default();
-            collapsed.depth = tree.collapse_in_parallel(&mut collapsed.nodes, &mut collapsed.order);
-            // The chunk's slots name its primitives by their place in the chunk.
-            collapsed
-                .order
-                .par_iter_mut()
-                .for_each(|i| *i = indices[*i as usize]);
-            Chunk {
-                collapsed,
-                bounds: *bvh2.nodes[0].aabb(),
-            }
-        })
-        .collect()
-}
-
-/// The 63-bit Morton code of a point of the unit cube (21 bits per axis).
-fn morton_code(unit: Vec3A) -> u64 {
-    let cells = (1u32 << 21) as f32;
-    let cell = |x: f32| ((x * cells) as u32).min((1 << 21) - 1);
-    obvhs::ploc::morton::morton_encode_u64(cell(unit.x), cell(unit.y), cell(unit.z))
-}
-
-/// Cuts the sorted `keys[range]` into runs of at most `chunk_size`, pushed to `ranges` in
-/// order: a run too long is split where the highest bit in which its codes differ turns
-/// from 0 to 1, which halves the Morton cell around it (so a chunk is a box of space, as a
-/// node near the top of a Morton-ordered tree would be), or in the middle if its codes are
-/// all equal.
-pub(super) fn chunk_ranges(
-    keys: &[(u64, u32)],
-    range: std::ops::Range<usize>,
-    chunk_size: usize,
-    ranges: &mut Vec<std::ops::Range<usize>>,
-) {
-    if range.len() <= chunk_size {
-        ranges.push(range);
-        return;
-    }
-    let (first, last) = (keys[range.start].0, keys[range.end - 1].0);
-    let split = if first == last {
-        range.start + range.len() / 2
-    } else {
-        let bit = 1u64 << (63 - (first ^ last).leading_zeros());
-        range.start + keys[range.clone()].partition_point(|&(code, _)| code & bit == 0)
-    };
-    chunk_ranges(keys, range.start..split, chunk_size, ranges);
-    chunk_ranges(keys, split..range.end, chunk_size, ranges);
-}
-
-/// Joins the chunks under a tree built over their boxes (one chunk per leaf, obvhs's
-/// slowest and best build: there are few), appending the whole tree to `nodes` and `order`
-/// in depth-first order. Returns its depth.
-fn join_chunks(chunks: Vec<Chunk>, nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
-    let boxes: Vec<Aabb> = chunks.iter().map(|chunk| chunk.bounds).collect();
-    let top = build_bvh2(&boxes, BvhBuildParams::very_slow_build());
-    nodes.reserve(
-        chunks
-            .iter()
-            .map(|c| c.collapsed.nodes.len())
-            .sum::<usize>()
-            + chunks.len(),
-    );
-    let mut chunks: Vec<Option<Collapsed>> =
-        chunks.into_iter().map(|c| Some(c.collapsed)).collect();
-    collapse_top(&top, &[0], &mut chunks, nodes, order)
-}
-
-/// Appends the 4-wide node over the top tree's nodes `children` (opened, widest first, until
-/// there are four lanes or only chunks are left), then what is below each lane: a top inner
-/// node recursively, or a chunk spliced in whole (its root node is the lane's child).
-/// Returns the depth below and including the node.
-fn collapse_top(
-    top: &Bvh2,
-    children: &[u32],
-    chunks: &mut [Option<Collapsed>],
-    nodes: &mut Vec<Node4>,
-    order: &mut Vec<u32>,
-) -> usize {
-    let is_leaf = |n: u32| u32::from(top.nodes[n as usize].is_leaf());
-    let mut lanes = Lanes::default();
-    children.iter().for_each(|&n| lanes.push((n, is_leaf(n))));
-    while lanes.len < 4 {
-        let widest = lanes
-            .as_slice()
-            .iter()
-            .enumerate()
-            .filter(|(_, (_, leaf))| *leaf == 0)
-            .max_by(|a, b| {
-                let area = |n: u32| top.nodes[n as usize].aabb().half_area();
-                area(a.1.0).total_cmp(&area(b.1.0))
-            });
-        let Some((k, &(n, _))) = widest else { break };
-        let first = top.nodes[n as usize].first_index;
-        lanes.replace_with_two(k, (first, is_leaf(first)), (first + 1, is_leaf(first + 1)));
-    }
-    let index = nodes.len();
-    nodes.push(Node4::EMPTY);
-    let mut depth = 1;
-    for (k, &(n, leaf)) in lanes.as_slice().iter().enumerate() {
-        let node = &top.nodes[n as usize];
-        let aabb = node.aabb();
-        for axis in 0..3 {
-            nodes[index].bounds[axis][k] = aabb.min[axis];
-            nodes[index].bounds[axis + 3][k] = aabb.max[axis];
-        }
-        nodes[index].child[k] = nodes.len() as u32;
-        let below = if leaf == 1 {
-            let chunk = top.primitive_indices[node.first_index as usize] as usize;
-            let collapsed = chunks[chunk]
-                .take()
-                .expect("each chunk is one leaf of the top tree");
-            collapsed.splice_into(nodes, order)
-        } else {
-            let first = node.first_index;
-            collapse_top(top, &[first, first + 1], chunks, nodes, order)
-        };
-        depth = depth.max(1 + below);
-    }
-    depth
-}
-
 /// The binary BVH with one primitive per leaf: obvhs's PLOC build and reinsertion passes,
 /// the steps of its `build_bvh2` without its leaf collapse (which [`BinaryTree::collapse`]
 /// replaces) and without the validation that build runs with debug assertions on: that one panics on
 /// trees deeper than 96, which degenerate input can make, while [`build_bvh`] refuses such
 /// trees with an error in every build.
+#[cfg(test)]
 pub(super) fn build_bvh2<T: obvhs::Boundable>(boxes: &[T], params: BvhBuildParams) -> Bvh2 {
-    build_bvh2_of(boxes.len(), &|i| boxes[i].aabb(), params)
+    build_bvh2_of(boxes.len(), &|i| boxes[i].aabb(), params, false)
 }
 
 /// [`build_bvh2`] over `count` primitives whose boxes `box_of` gives: obvhs's leaves are
 /// made here from the boxes (as its `build_ploc` makes them from a slice), so no array of
-/// boxes or primitives is needed beside its scratch.
+/// boxes or primitives is needed beside its scratch. With `large_scene` the Morton codes are
+/// taken in the cube from the scene box's lower corner, instead of the box itself, and the
+/// scratch is allocated with [`scratch_vec`].
 pub(super) fn build_bvh2_of(
     count: usize,
     box_of: &(impl Fn(usize) -> Aabb + Sync),
     params: BvhBuildParams,
+    large_scene: bool,
 ) -> Bvh2 {
     // The node array is first written by all threads: PLOC's merge loop fills it on one
     // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone
     // (build 240 -> 215 ms there).
     let node_count = (2 * count).saturating_sub(1);
+    let mut nodes = scratch_vec::<Bvh2Node>(node_count, large_scene);
+    nodes.par_extend((0..node_count).into_par_iter().map(|_| Bvh2Node::default()));
     let mut bvh2 = Bvh2 {
-        nodes: (0..node_count)
-            .into_par_iter()
-            .map(|_| Bvh2Node::default())
-            .collect(),
+        nodes,
         // obvhs's leaves hold their primitive's index into `primitive_indices` as its place
         // there, so only the identity gives trees whose leaves can be read through it.
         primitive_indices: (0..count as u32).collect(),
@@ -368,16 +212,30 @@ pub(super) fn build_bvh2_of(
     if count == 0 {
         return bvh2;
     }
-    let mut ploc = obvhs::ploc::PlocBuilder::with_capacity(count);
-    ploc.current_nodes
-        .par_iter_mut()
-        .enumerate()
-        .for_each(|(i, node)| *node = Bvh2Node::new(box_of(i), 1, i as u32));
+    let mut ploc = obvhs::ploc::PlocBuilder {
+        current_nodes: scratch_vec(count, large_scene),
+        next_nodes: scratch_vec(count, large_scene),
+        mortons: scratch_vec(count, large_scene),
+        ..obvhs::ploc::PlocBuilder::new()
+    };
+    ploc.current_nodes.par_extend(
+        (0..count)
+            .into_par_iter()
+            .map(|i| Bvh2Node::new(box_of(i), 1, i as u32)),
+    );
     let total = ploc
         .current_nodes
         .par_iter()
         .map(|node| *node.aabb())
         .reduce(Aabb::empty, |a, b| a.union(&b));
+    let total = if large_scene {
+        Aabb::new(
+            total.min,
+            total.min + Vec3A::splat(total.diagonal().max_element()),
+        )
+    } else {
+        total
+    };
     let (precision, depth) = (params.sort_precision, params.search_depth_threshold);
     use obvhs::ploc::PlocSearchDistance as Distance;
     match params.ploc_search_distance {
@@ -412,6 +270,23 @@ pub(super) fn build_bvh2_of(
     );
     bvh2
 }
+
+/// An empty vector for `len` items; in a large scene's build, with room for at least
+/// [`MAPPED_SCRATCH_BYTES`]: glibc maps blocks that large on their own and unmaps them when
+/// they are freed, while smaller freed blocks stay resident (its mmap threshold rises to 32
+/// MiB as large blocks are freed): the chunks' scratch otherwise left 84 MiB of dead
+/// memory beside the scene. Pages never touched cost address space only.
+fn scratch_vec<T>(len: usize, large_scene: bool) -> Vec<T> {
+    let room = if large_scene {
+        len.max(MAPPED_SCRATCH_BYTES / size_of::<T>())
+    } else {
+        len
+    };
+    Vec::with_capacity(room)
+}
+
+/// See [`scratch_vec`].
+const MAPPED_SCRATCH_BYTES: usize = 64 << 20;
 
 /// The binary BVH, read top-down by [`BinaryTree::collapse`], which decides its leaves on
 /// the way: a subtree of at most `max_leaf_size` primitives becomes one leaf of the 4-wide
@@ -632,15 +507,15 @@ pub(super) const PARALLEL_LEVELS: usize = 5;
 /// primitive.
 #[derive(Default)]
 pub(super) struct Collapsed {
-    nodes: Vec<Node4>,
-    order: Vec<u32>,
-    depth: usize,
+    pub(super) nodes: Vec<Node4>,
+    pub(super) order: Vec<u32>,
+    pub(super) depth: usize,
 }
 
 impl Collapsed {
     /// Appends the subtree to `nodes` and `order`, its inner children and leaves moved past
     /// the nodes and slots already there. Returns its depth.
-    fn splice_into(self, nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
+    pub(super) fn splice_into(self, nodes: &mut Vec<Node4>, order: &mut Vec<u32>) -> usize {
         let (node_offset, slot_offset) = (nodes.len() as u32, order.len() as u32);
         nodes.extend(self.nodes.into_iter().map(|mut node| {
             for k in 0..4 {
@@ -660,23 +535,23 @@ impl Collapsed {
 /// Up to four binary nodes that become the lanes of one 4-wide node, each with its leaf size
 /// (no allocation per node).
 #[derive(Default)]
-struct Lanes {
+pub(super) struct Lanes {
     items: [(u32, u32); 4],
-    len: usize,
+    pub(super) len: usize,
 }
 
 impl Lanes {
-    fn as_slice(&self) -> &[(u32, u32)] {
+    pub(super) fn as_slice(&self) -> &[(u32, u32)] {
         &self.items[..self.len]
     }
 
-    fn push(&mut self, item: (u32, u32)) {
+    pub(super) fn push(&mut self, item: (u32, u32)) {
         self.items[self.len] = item;
         self.len += 1;
     }
 
     /// Replaces lane `k` by `a` and `b` (in that order); needs room for one more.
-    fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
+    pub(super) fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
         self.items.copy_within(k + 1..self.len, k + 2);
         (self.items[k], self.items[k + 1]) = (a, b);
         self.len += 1;

@@ -12,6 +12,7 @@
 //! large batches of independent rays in a cache-friendly order.
 
 pub mod build;
+mod chunks;
 pub mod instances;
 pub mod leaf_prims;
 pub mod occluders;

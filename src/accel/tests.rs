@@ -606,27 +606,91 @@ fn chunked_builds_find_the_hits_of_the_whole_build_and_of_brute_force() {
     }
 }
 
+/// The 12 triangles of a box's six faces, from `lo` to `hi`: the walls of a room.
+fn room_walls(lo: Vec3A, hi: Vec3A) -> Vec<Shape> {
+    let corner = |i: usize| {
+        Vec3A::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    };
+    let faces = [
+        [0, 1, 3, 2],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 3, 7, 5],
+    ];
+    faces
+        .iter()
+        .flat_map(|f| {
+            [
+                TriangleGeom::new(corner(f[0]), corner(f[1]), corner(f[2])),
+                TriangleGeom::new(corner(f[0]), corner(f[2]), corner(f[3])),
+            ]
+        })
+        .map(Shape::Triangle)
+        .collect()
+}
+
 #[test]
-fn chunk_ranges_cut_morton_cells_into_runs_of_at_most_the_chunk_size() {
-    // Codes 0..1000 (sorted), then 300 equal codes: the cuts fall where a high bit turns
-    // on, and the equal run is halved.
-    let mut keys: Vec<(u64, u32)> = (0..1000u64).map(|c| (c, c as u32)).collect();
-    keys.extend((1000..1300u32).map(|i| (5000, i)));
-    let mut ranges = Vec::new();
-    chunk_ranges(&keys, 0..keys.len(), 100, &mut ranges);
-    assert_eq!(ranges.first().unwrap().start, 0);
-    assert_eq!(ranges.last().unwrap().end, keys.len());
-    for pair in ranges.windows(2) {
-        assert_eq!(pair[0].end, pair[1].start, "contiguous");
+fn chunked_builds_keep_large_primitives_out_of_the_chunks() {
+    // A room around small shapes (in 0..10, the room -20..30): the walls become leaves of
+    // the top tree, so no chunk's box reaches from wall to wall, and the hits are brute
+    // force's.
+    let mut shapes = random_shapes(6000);
+    let walls = room_walls(Vec3A::splat(-20.0), Vec3A::splat(30.0));
+    shapes.extend(walls.iter().copied());
+    let box_of = |i: usize| obvhs::Boundable::aabb(&shapes[i]);
+    let boxes: Vec<_> = (0..shapes.len()).map(box_of).collect();
+    let (mut large, chunks) = super::chunks::chunks_of(&boxes, 1000);
+    large.sort_unstable();
+    assert!(
+        large.iter().copied().eq(6000..6012),
+        "the walls, and only they, are large"
+    );
+    assert!(chunks.len() >= 6 && chunks.iter().all(|c| c.len() <= 1000));
+    let (bvh, order) = build_bvh_in_chunks_of(shapes.len(), &box_of, 1000).unwrap();
+    check_tree(&bvh, &order, &shapes);
+    let is_wall = |slot: u32| order[slot as usize] as usize >= shapes.len() - walls.len();
+    // Every leaf with a wall holds only walls, and every lane without walls below it (a
+    // chunk's subtree) lies inside the room, away from the walls.
+    fn walls_below(bvh: &Bvh4, node: usize, is_wall: &dyn Fn(u32) -> bool) -> usize {
+        let mut total = 0;
+        for k in 0..4 {
+            let (child, count) = (bvh.nodes[node].child[k], bvh.nodes[node].count[k]);
+            let walls = match (count, child) {
+                (0, u32::MAX) => continue,
+                (0, _) => walls_below(bvh, child as usize, is_wall),
+                _ => {
+                    let walls = (child..child + count).filter(|&s| is_wall(s)).count();
+                    assert!(walls == 0 || walls == count as usize, "walls apart");
+                    walls
+                }
+            };
+            if walls == 0 {
+                let bounds = &bvh.nodes[node].bounds;
+                for axis in 0..3 {
+                    assert!(bounds[axis][k] > -0.6 && bounds[axis + 3][k] < 10.6);
+                }
+            }
+            total += walls;
+        }
+        total
     }
-    assert!(ranges.iter().all(|r| !r.is_empty() && r.len() <= 100));
-    // 0..512 splits from 512..1000 first (bit 9), then into cells of 64 codes.
-    assert_eq!(ranges[0], 0..64);
-    assert!(ranges.contains(&(448..512)) && ranges.contains(&(512..576)));
-    // The equal codes: 300 -> 150 + 150 -> 75 each.
-    let equal: Vec<_> = ranges.iter().filter(|r| r.start >= 1000).collect();
-    assert_eq!(equal.len(), 4);
-    assert!(equal.iter().all(|r| r.len() == 75));
+    let walls_found = walls_below(&bvh, 0, &is_wall);
+    assert_eq!(walls_found, walls.len());
+    for i in 0..3000 {
+        let ray = random_ray(12, i);
+        let brute = brute_force_closest(&shapes, ray.0, ray.1, ray.2);
+        assert_eq!(
+            closest_through(&bvh, &order, &shapes, ray),
+            brute,
+            "ray {i}"
+        );
+    }
 }
 
 #[test]
