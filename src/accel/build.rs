@@ -139,11 +139,16 @@ pub(super) fn build_bvh_in_chunks_of(
     // flat slabs and the curve's neighbours far apart; cubes keep them close (the 2M-triangle
     // grid in the room: 8% fewer instructions per ray). Smaller scenes keep obvhs's cells:
     // Cycles' export of the room traced 11% slower with cubes.
-    let large_scene = count >= MEDIUM_SCENE;
+    let cubic_cells = count >= MEDIUM_SCENE;
     let mut bvh = Bvh4::default();
     let mut order = Vec::with_capacity(count);
     if count <= chunk_size.max(1) {
-        let bvh2 = build_bvh2_of(count, box_of, params, large_scene);
+        let run = PlocRun {
+            params,
+            cubic_cells,
+            mapped_scratch: false,
+        };
+        let bvh2 = build_bvh2_of(count, box_of, run);
         crate::memory::trace_phase("binary bvh");
         // About a third of the binary nodes with one primitive per leaf, a sixth with four
         // (room enough that the vector never grows; pages never touched cost nothing).
@@ -161,7 +166,7 @@ pub(super) fn build_bvh_in_chunks_of(
             count,
             box_of,
             chunk_size,
-            (params, max_leaf_size, large_scene),
+            (params, max_leaf_size, cubic_cells),
             &mut bvh.nodes,
             &mut order,
         );
@@ -182,25 +187,31 @@ pub(super) fn build_bvh_in_chunks_of(
 /// trees with an error in every build.
 #[cfg(test)]
 pub(super) fn build_bvh2<T: obvhs::Boundable>(boxes: &[T], params: BvhBuildParams) -> Bvh2 {
-    build_bvh2_of(boxes.len(), &|i| boxes[i].aabb(), params, false)
+    let run = PlocRun {
+        params,
+        cubic_cells: false,
+        mapped_scratch: false,
+    };
+    build_bvh2_of(boxes.len(), &|i| boxes[i].aabb(), run)
 }
 
 /// [`build_bvh2`] over `count` primitives whose boxes `box_of` gives: obvhs's leaves are
 /// made here from the boxes (as its `build_ploc` makes them from a slice), so no array of
-/// boxes or primitives is needed beside its scratch. With `large_scene` the Morton codes are
-/// taken in the cube from the scene box's lower corner, instead of the box itself, and the
-/// scratch is allocated with [`scratch_vec`].
+/// boxes or primitives is needed beside its scratch.
 pub(super) fn build_bvh2_of(
     count: usize,
     box_of: &(impl Fn(usize) -> Aabb + Sync),
-    params: BvhBuildParams,
-    large_scene: bool,
+    PlocRun {
+        params,
+        cubic_cells,
+        mapped_scratch,
+    }: PlocRun,
 ) -> Bvh2 {
     // The node array is first written by all threads: PLOC's merge loop fills it on one
     // thread, which otherwise took every page fault of its 84 MB (1.3M triangles) alone
     // (build 240 -> 215 ms there).
     let node_count = (2 * count).saturating_sub(1);
-    let mut nodes = scratch_vec::<Bvh2Node>(node_count, large_scene);
+    let mut nodes = scratch_vec::<Bvh2Node>(node_count, mapped_scratch);
     nodes.par_extend((0..node_count).into_par_iter().map(|_| Bvh2Node::default()));
     let mut bvh2 = Bvh2 {
         nodes,
@@ -213,9 +224,9 @@ pub(super) fn build_bvh2_of(
         return bvh2;
     }
     let mut ploc = obvhs::ploc::PlocBuilder {
-        current_nodes: scratch_vec(count, large_scene),
-        next_nodes: scratch_vec(count, large_scene),
-        mortons: scratch_vec(count, large_scene),
+        current_nodes: scratch_vec(count, mapped_scratch),
+        next_nodes: scratch_vec(count, mapped_scratch),
+        mortons: scratch_vec(count, mapped_scratch),
         ..obvhs::ploc::PlocBuilder::new()
     };
     ploc.current_nodes.par_extend(
@@ -228,7 +239,7 @@ pub(super) fn build_bvh2_of(
         .par_iter()
         .map(|node| *node.aabb())
         .reduce(Aabb::empty, |a, b| a.union(&b));
-    let total = if large_scene {
+    let total = if cubic_cells {
         Aabb::new(
             total.min,
             total.min + Vec3A::splat(total.diagonal().max_element()),
@@ -271,22 +282,33 @@ pub(super) fn build_bvh2_of(
     bvh2
 }
 
-/// An empty vector for `len` items; in a large scene's build, with room for at least
+/// How [`build_bvh2_of`] runs obvhs's PLOC.
+#[derive(Clone, Copy)]
+pub(super) struct PlocRun {
+    pub(super) params: BvhBuildParams,
+    /// Morton codes taken in the cube from the scene box's lower corner, instead of in the
+    /// box itself (see [`build_bvh_in_chunks_of`]).
+    pub(super) cubic_cells: bool,
+    /// The scratch allocated by [`scratch_vec`] with room enough to be mapped on its own.
+    pub(super) mapped_scratch: bool,
+}
+
+/// An empty vector for `len` items; with `mapped`, with room for more than
 /// [`MAPPED_SCRATCH_BYTES`]: glibc maps blocks that large on their own and unmaps them when
 /// they are freed, while smaller freed blocks stay resident (its mmap threshold rises to 32
-/// MiB as large blocks are freed): the chunks' scratch otherwise left 84 MiB of dead
-/// memory beside the scene. Pages never touched cost address space only.
-fn scratch_vec<T>(len: usize, large_scene: bool) -> Vec<T> {
-    let room = if large_scene {
-        len.max(MAPPED_SCRATCH_BYTES / size_of::<T>())
+/// MiB as large blocks are freed): the chunks' scratch otherwise left 84 MiB of dead memory
+/// beside the scene. Pages never touched cost address space only.
+fn scratch_vec<T>(len: usize, mapped: bool) -> Vec<T> {
+    let room = if mapped {
+        len.max(MAPPED_SCRATCH_BYTES / size_of::<T>() + 1)
     } else {
         len
     };
     Vec::with_capacity(room)
 }
 
-/// See [`scratch_vec`].
-const MAPPED_SCRATCH_BYTES: usize = 64 << 20;
+/// glibc's largest mmap threshold (`DEFAULT_MMAP_THRESHOLD_MAX` on 64-bit systems).
+const MAPPED_SCRATCH_BYTES: usize = 32 << 20;
 
 /// The binary BVH, read top-down by [`BinaryTree::collapse`], which decides its leaves on
 /// the way: a subtree of at most `max_leaf_size` primitives becomes one leaf of the 4-wide

@@ -15,7 +15,7 @@
 //!   primitives (a few dozen items), collapsed like the chunks: inner nodes opened widest
 //!   first, large primitives merged into leaves where the surface area cost says so.
 
-use super::build::{BinaryTree, Collapsed, Lanes, MAX_DEPTH, Node4, build_bvh2_of};
+use super::build::{BinaryTree, Collapsed, Lanes, MAX_DEPTH, Node4, PlocRun, build_bvh2_of};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
@@ -96,8 +96,11 @@ pub(super) fn build_in_chunks(
     let top = build_bvh2_of(
         items.len(),
         &|i| items[i],
-        BvhBuildParams::very_slow_build(),
-        false,
+        PlocRun {
+            params: BvhBuildParams::very_slow_build(),
+            cubic_cells: false,
+            mapped_scratch: false,
+        },
     );
     let tree = TopTree {
         top: &top,
@@ -316,8 +319,11 @@ fn build_chunk(
     let bvh2 = build_bvh2_of(
         indices.len(),
         &|k| box_of(indices[k] as usize),
-        params,
-        cubic_cells,
+        PlocRun {
+            params,
+            cubic_cells,
+            mapped_scratch: true,
+        },
     );
     let tree = BinaryTree {
         bvh2: &bvh2,

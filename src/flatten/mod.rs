@@ -35,15 +35,14 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
-/// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds about
-/// 150 bytes per triangle at the build and peaks at about 170 in all, file and world
-/// included, 213 with normals and texture coordinates; see docs/performance.md, "Memory per
-/// triangle"). Kept with a margin.
-const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 250;
+/// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds
+/// about 110 bytes per triangle, 160 with normals and texture coordinates; see
+/// docs/performance.md, "Memory per triangle"). Kept with a margin.
+const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 200;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
-/// they are filled): the 2-million-triangle OBJ needs `ulimit -v` of about 1.1 GB where the
-/// world alone maps about 0.27 GB.
-const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 450;
+/// they are filled, the chunked build's mapped scratch): the 2-million-triangle OBJ's
+/// address space peaks at 0.57 GB (`VmPeak`), about 150 bytes per triangle over its world.
+const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 250;
 
 /// Refuses a world whose render scene would not fit in the memory the process can still
 /// take (see [`crate::memory`]), before anything large is built.
