@@ -360,26 +360,7 @@ impl BinaryTree<'_> {
     /// `children`, expanded until there are four or only leaves remain, each with its leaf
     /// size (0: an inner lane).
     fn lanes(&self, children: &[u32]) -> Lanes {
-        let bvh2 = &self.bvh2.nodes;
-        let with_size = |n: u32| (n, self.leaf_size(n));
-        let mut lanes = Lanes::default();
-        children.iter().for_each(|&n| lanes.push(with_size(n)));
-        while lanes.len < 4 {
-            // Open the inner child with the largest surface: it is the most likely to be entered.
-            let widest = lanes
-                .as_slice()
-                .iter()
-                .enumerate()
-                .filter(|(_, (_, leaf_size))| *leaf_size == 0)
-                .max_by(|a, b| {
-                    let area = |n: u32| bvh2[n as usize].aabb().half_area();
-                    area(a.1.0).total_cmp(&area(b.1.0))
-                });
-            let Some((k, &(n, _))) = widest else { break };
-            let first = bvh2[n as usize].first_index;
-            lanes.replace_with_two(k, with_size(first), with_size(first + 1));
-        }
-        lanes
+        Lanes::widest_first(&self.bvh2.nodes, children, |n| self.leaf_size(n))
     }
 
     /// The two children of the inner binary node `n`.
@@ -554,26 +535,54 @@ impl Collapsed {
     }
 }
 
-/// Up to four binary nodes that become the lanes of one 4-wide node, each with its leaf size
-/// (no allocation per node).
+/// Up to four binary nodes that become the lanes of one 4-wide node, each with what it
+/// becomes there (a leaf's size, or 0 for an inner node; see [`Lanes::widest_first`]), with
+/// no allocation per node.
 #[derive(Default)]
 pub(super) struct Lanes {
     items: [(u32, u32); 4],
-    pub(super) len: usize,
+    len: usize,
 }
 
 impl Lanes {
+    /// The lanes over the binary nodes `children` of `nodes`, each with `kind(n)` (0: an
+    /// inner node, which may be opened), the inner ones opened widest first until there are
+    /// four lanes or none is left: the widest is the most likely to be entered.
+    pub(super) fn widest_first(
+        nodes: &[Bvh2Node],
+        children: &[u32],
+        kind: impl Fn(u32) -> u32,
+    ) -> Lanes {
+        let mut lanes = Lanes::default();
+        children.iter().for_each(|&n| lanes.push((n, kind(n))));
+        while lanes.len < 4 {
+            let widest = lanes
+                .as_slice()
+                .iter()
+                .enumerate()
+                .filter(|(_, (_, kind))| *kind == 0)
+                .max_by(|a, b| {
+                    let area = |n: u32| nodes[n as usize].aabb().half_area();
+                    area(a.1.0).total_cmp(&area(b.1.0))
+                });
+            let Some((k, &(n, _))) = widest else { break };
+            let first = nodes[n as usize].first_index;
+            lanes.replace_with_two(k, (first, kind(first)), (first + 1, kind(first + 1)));
+        }
+        lanes
+    }
+
     pub(super) fn as_slice(&self) -> &[(u32, u32)] {
         &self.items[..self.len]
     }
 
-    pub(super) fn push(&mut self, item: (u32, u32)) {
+    fn push(&mut self, item: (u32, u32)) {
         self.items[self.len] = item;
         self.len += 1;
     }
 
     /// Replaces lane `k` by `a` and `b` (in that order); needs room for one more.
-    pub(super) fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
+    fn replace_with_two(&mut self, k: usize, a: (u32, u32), b: (u32, u32)) {
         self.items.copy_within(k + 1..self.len, k + 2);
         (self.items[k], self.items[k + 1]) = (a, b);
         self.len += 1;

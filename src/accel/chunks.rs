@@ -421,28 +421,7 @@ impl TopTree<'_> {
             return MAX_DEPTH + 1;
         }
         let top = &self.top.nodes;
-        let mut lanes = Lanes::default();
-        children
-            .iter()
-            .for_each(|&n| lanes.push((n, self.lane_kind(n))));
-        while lanes.len < 4 {
-            let widest = lanes
-                .as_slice()
-                .iter()
-                .enumerate()
-                .filter(|(_, (_, kind))| *kind == 0)
-                .max_by(|a, b| {
-                    let area = |n: u32| top[n as usize].aabb().half_area();
-                    area(a.1.0).total_cmp(&area(b.1.0))
-                });
-            let Some((k, &(n, _))) = widest else { break };
-            let first = top[n as usize].first_index;
-            lanes.replace_with_two(
-                k,
-                (first, self.lane_kind(first)),
-                (first + 1, self.lane_kind(first + 1)),
-            );
-        }
+        let lanes = Lanes::widest_first(top, children, |n| self.lane_kind(n));
         let index = nodes.len();
         nodes.push(Node4::EMPTY);
         let mut depth = 1;
