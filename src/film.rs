@@ -45,6 +45,12 @@ impl Film {
         }
     }
 
+    /// Bytes per pixel of a film, with or without the error estimate.
+    pub fn bytes_per_pixel(error_estimate: bool) -> u64 {
+        let sums = size_of::<[f64; 3]>() * if error_estimate { 2 } else { 1 };
+        (sums + size_of::<u32>()) as u64
+    }
+
     /// Adds one sample to a pixel; a NaN or infinite sample is counted and discarded.
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
         let i = pixel as usize;

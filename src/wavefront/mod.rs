@@ -71,6 +71,34 @@ struct Buffers {
     shadows: ShadowBatch,
 }
 
+/// Bytes per pixel that writing the image takes beside the film: the resolved image (f32
+/// RGB) and the encoder's copy (16-bit or f32 RGB) with its output buffer.
+const OUTPUT_BYTES_PER_PIXEL: u64 = 32;
+
+/// Refuses an image whose per-pixel memory would not fit in what the process can still
+/// take (see [`crate::memory`]): the film, the light paths' splats and vertices, and the
+/// output. The batches' buffers do not grow with the image.
+fn check_image_memory(settings: &RenderSettings, caustics_traced: bool) -> Result<()> {
+    let pixels = settings.pixel_count();
+    let mut bytes =
+        pixels * (Film::bytes_per_pixel(settings.adaptive.is_some()) + OUTPUT_BYTES_PER_PIXEL);
+    if caustics_traced {
+        bytes += pixels * size_of::<Rgb>() as u64;
+        bytes += light_paths::light_path_count(settings, pixels) * size_of::<LightVertex>() as u64;
+    }
+    let what = format!("a {}x{} image", settings.width, settings.height);
+    let needed = crate::memory::Needed {
+        resident: bytes,
+        address_space: bytes,
+    };
+    match crate::memory::shortfall(&what, needed, crate::memory::available()) {
+        Some(why) => Err(crate::Error::Settings(format!(
+            "{why}; render a smaller image"
+        ))),
+        None => Ok(()),
+    }
+}
+
 /// Renders `scene`, calling `progress` after each round of batches. Runs on the current
 /// rayon pool.
 pub fn render(
@@ -83,6 +111,7 @@ pub fn render(
     let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
     let pixel_count = settings.width * settings.height;
     let caustics_traced = light_paths::caustics_traced(scene, settings);
+    check_image_memory(settings, caustics_traced)?;
     let batch_size = paths_per_batch(settings, caustics_traced);
     let round_size = ROUND_PATHS.max(batch_size);
     let mut film = match settings.adaptive {

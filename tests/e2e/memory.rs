@@ -229,3 +229,30 @@ fn a_texture_too_large_to_decode_is_skipped_with_a_warning() {
         }
     }
 }
+
+/// An image whose film and output would not fit is refused before the render starts: the
+/// room at 11000 x 11000 (121M pixels, under the pixel limit) under `ulimit -v` 1.5 GB used
+/// to end in an allocation abort with a backtrace ("memory allocation of 2904000000 bytes
+/// failed", exit 134) when the film was made.
+#[test]
+fn an_image_too_large_for_the_memory_left_is_refused_with_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("huge.png");
+    let room = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 1500000 && exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_wavetrace"))
+        .args(["render", "--quiet", "--spp", "1", "--width", "11000"])
+        .args(["--height", "11000", "-o"])
+        .arg(&output)
+        .arg(&room)
+        .output()
+        .unwrap();
+    let expected = ["11000x11000 image", "does not fit in memory", "GiB"];
+    if let Err(e) = check_failure(&out, 1, &expected) {
+        panic!("{e}");
+    }
+    assert!(!output.exists(), "no image is written");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
