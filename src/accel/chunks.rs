@@ -31,6 +31,10 @@ const BINS: usize = 64;
 /// its furniture.
 const LARGE_AREA: f32 = 1.0 / 1024.0;
 
+/// The most large primitives set apart: the top tree's build (obvhs's slowest) stays a few
+/// milliseconds. A scene of mostly large primitives is cut like any other.
+const MAX_LARGE: usize = 4096;
+
 /// A primitive's box with its index, while the top splits reorder the primitives (28 bytes:
 /// the boxes are read once, and freed before the chunks are built).
 #[derive(Clone, Copy)]
@@ -120,9 +124,9 @@ pub(super) fn build_in_chunks(
     tree.collapse(&[0], &mut chunks, nodes, order, MAX_DEPTH)
 }
 
-/// Reorders `boxed`: first the large primitives (their number is returned; so many of them
-/// that they would need chunks of their own are left with the others), then the chunks,
-/// whose ranges and boxes are returned.
+/// Reorders `boxed`: first the large primitives (their number is returned; more than
+/// [`MAX_LARGE`] are left with the others), then the chunks, whose ranges and boxes are
+/// returned.
 fn cut_into_chunks(boxed: &mut [Boxed], chunk_size: usize) -> (usize, Vec<(Range<usize>, Aabb)>) {
     let bounds = boxed
         .par_iter()
@@ -130,7 +134,7 @@ fn cut_into_chunks(boxed: &mut [Boxed], chunk_size: usize) -> (usize, Vec<(Range
         .reduce(Aabb::empty, |a, b| a.union(&b));
     let limit = bounds.half_area() * LARGE_AREA;
     let mut large = partition(boxed, |b| b.aabb().half_area() > limit);
-    if large > chunk_size {
+    if large > MAX_LARGE {
         large = 0;
     }
     let mut ranges = Vec::new();
