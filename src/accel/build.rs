@@ -335,25 +335,12 @@ impl BinaryTree<'_> {
     }
 
     /// If the subtree of `n` becomes one leaf of at most `budget` primitives: its size and
-    /// surface area cost. Each level down leaves the sibling at least one primitive of the
-    /// budget, so at most `2^budget` nodes are read.
+    /// surface area cost (see [`merged_leaf`]).
     fn merged_leaf(&self, n: u32, budget: u32) -> Option<(u32, f32)> {
-        let node = &self.bvh2.nodes[n as usize];
-        let area = node.aabb().half_area();
-        if node.is_leaf() {
-            let size = node.prim_count;
-            return (size <= budget).then_some((size, area * size as f32));
-        }
-        if budget < 2 {
-            return None;
-        }
-        let (left_size, left_cost) = self.merged_leaf(node.first_index, budget - 1)?;
-        let (right_size, right_cost) =
-            self.merged_leaf(node.first_index + 1, budget - left_size)?;
-        let size = left_size + right_size;
-        let merged_cost = area * size as f32;
-        (merged_cost <= area * self.node_cost + left_cost + right_cost)
-            .then_some((size, merged_cost))
+        let nodes = &self.bvh2.nodes;
+        merged_leaf(nodes, n, budget, self.node_cost, &|n| {
+            Some(nodes[n as usize].prim_count)
+        })
     }
 
     /// The binary nodes that make the lanes of the 4-wide node over the binary nodes
@@ -496,6 +483,36 @@ impl BinaryTree<'_> {
             self.append_primitives(node.first_index + 1, order);
         }
     }
+}
+
+/// If the subtree of binary node `n` of `nodes` becomes one leaf of at most `budget`
+/// primitives: its size and surface area cost. It does when testing all its primitives
+/// costs no more than keeping its nodes, each costing `node_cost` primitive tests.
+/// `leaf_size(n)` is the number of primitives of leaf node `n`, or `None` for a leaf that
+/// cannot be merged. Each level down leaves the sibling at least one primitive of the
+/// budget, so at most `2^budget` nodes are read.
+pub(super) fn merged_leaf(
+    nodes: &[Bvh2Node],
+    n: u32,
+    budget: u32,
+    node_cost: f32,
+    leaf_size: &impl Fn(u32) -> Option<u32>,
+) -> Option<(u32, f32)> {
+    let node = &nodes[n as usize];
+    let area = node.aabb().half_area();
+    if node.is_leaf() {
+        let size = leaf_size(n)?;
+        return (size <= budget).then_some((size, area * size as f32));
+    }
+    if budget < 2 {
+        return None;
+    }
+    let below = |child: u32, budget: u32| merged_leaf(nodes, child, budget, node_cost, leaf_size);
+    let (left_size, left_cost) = below(node.first_index, budget - 1)?;
+    let (right_size, right_cost) = below(node.first_index + 1, budget - left_size)?;
+    let size = left_size + right_size;
+    let merged_cost = area * size as f32;
+    (merged_cost <= area * node_cost + left_cost + right_cost).then_some((size, merged_cost))
 }
 
 /// Levels at the top of the 4-wide tree collapsed sequentially; the subtrees below them are

@@ -15,7 +15,9 @@
 //!   primitives (a few dozen items), collapsed like the chunks: inner nodes opened widest
 //!   first, large primitives merged into leaves where the surface area cost says so.
 
-use super::build::{BinaryTree, Collapsed, Lanes, MAX_DEPTH, Node4, PlocRun, build_bvh2_of};
+use super::build::{
+    BinaryTree, Collapsed, Lanes, MAX_DEPTH, Node4, PlocRun, build_bvh2_of, merged_leaf,
+};
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
@@ -379,21 +381,9 @@ impl TopTree<'_> {
     /// If the subtree of `n` holds only large primitives and becomes one leaf of at most
     /// `budget` of them: its size and surface area cost.
     fn merged_leaf(&self, n: u32, budget: u32) -> Option<(u32, f32)> {
-        let node = &self.top.nodes[n as usize];
-        let area = node.aabb().half_area();
-        match self.item(n) {
-            Some(item) if item < self.chunks => return None,
-            Some(_) => return (budget >= 1).then_some((1, area)),
-            None if budget < 2 => return None,
-            None => {}
-        }
-        let (left_size, left_cost) = self.merged_leaf(node.first_index, budget - 1)?;
-        let (right_size, right_cost) =
-            self.merged_leaf(node.first_index + 1, budget - left_size)?;
-        let size = left_size + right_size;
-        let merged_cost = area * size as f32;
-        (merged_cost <= area * self.node_cost + left_cost + right_cost)
-            .then_some((size, merged_cost))
+        merged_leaf(&self.top.nodes, n, budget, self.node_cost, &|n| {
+            self.item(n).filter(|&item| item >= self.chunks).map(|_| 1)
+        })
     }
 
     /// Appends the large primitives below top node `n` to `order`.
