@@ -45,6 +45,14 @@ pub struct Node4 {
 }
 
 impl Node4 {
+    /// Sets lane `k`'s box.
+    pub(super) fn set_lane_box(&mut self, k: usize, aabb: &Aabb) {
+        for axis in 0..3 {
+            self.bounds[axis][k] = aabb.min[axis];
+            self.bounds[axis + 3][k] = aabb.max[axis];
+        }
+    }
+
     /// A node whose four lanes are unused (empty boxes, no children), to be filled in.
     pub(super) const EMPTY: Node4 = Node4 {
         bounds: [
@@ -445,11 +453,7 @@ impl BinaryTree<'_> {
         nodes.push(Node4::EMPTY);
         let mut depth = 1;
         for (k, &(n, leaf_size)) in lanes.as_slice().iter().enumerate() {
-            let aabb = bvh2[n as usize].aabb();
-            for axis in 0..3 {
-                nodes[index].bounds[axis][k] = aabb.min[axis];
-                nodes[index].bounds[axis + 3][k] = aabb.max[axis];
-            }
+            nodes[index].set_lane_box(k, bvh2[n as usize].aabb());
             if leaf_size > 0 {
                 nodes[index].child[k] = order.len() as u32;
                 nodes[index].count[k] = leaf_size;

@@ -372,18 +372,16 @@ impl TopTree<'_> {
     fn lane_kind(&self, n: u32) -> u32 {
         match self.item(n) {
             Some(item) if item < self.chunks => CHUNK_LANE,
-            _ => self
-                .merged_leaf(n, self.max_leaf_size)
-                .map_or(0, |(size, _)| size),
+            // Only large primitives merge: a chunk below makes the subtree unmergeable.
+            _ => merged_leaf(
+                &self.top.nodes,
+                n,
+                self.max_leaf_size,
+                self.node_cost,
+                &|n| self.item(n).filter(|&item| item >= self.chunks).map(|_| 1),
+            )
+            .map_or(0, |(size, _)| size),
         }
-    }
-
-    /// If the subtree of `n` holds only large primitives and becomes one leaf of at most
-    /// `budget` of them: its size and surface area cost.
-    fn merged_leaf(&self, n: u32, budget: u32) -> Option<(u32, f32)> {
-        merged_leaf(&self.top.nodes, n, budget, self.node_cost, &|n| {
-            self.item(n).filter(|&item| item >= self.chunks).map(|_| 1)
-        })
     }
 
     /// Appends the large primitives below top node `n` to `order`.
@@ -421,11 +419,7 @@ impl TopTree<'_> {
         let mut depth = 1;
         for (k, &(n, kind)) in lanes.as_slice().iter().enumerate() {
             let node = &top[n as usize];
-            let aabb = node.aabb();
-            for axis in 0..3 {
-                nodes[index].bounds[axis][k] = aabb.min[axis];
-                nodes[index].bounds[axis + 3][k] = aabb.max[axis];
-            }
+            nodes[index].set_lane_box(k, node.aabb());
             let below = match kind {
                 CHUNK_LANE => {
                     nodes[index].child[k] = nodes.len() as u32;
