@@ -1,10 +1,10 @@
 //! Render settings, passed explicitly from the CLI (or a test) to the renderer, and the one
 //! place of their precedence: the caller's overrides (command-line flags) over the scene
-//! file's `[render]` table over the defaults ([`RenderSettings::resolve`]).
+//! file's `[render]` table ([`SceneDefaults`], which the scene loader fills) over the
+//! defaults ([`RenderSettings::resolve`]). Settings import nothing from the loader.
 
 use crate::error::{Error, Result};
 use crate::math::rng::{DEFAULT_SEED, Sampler};
-use crate::scene::load::SceneDefaults;
 
 /// Largest accepted image side, in pixels.
 pub const MAX_IMAGE_SIDE: u32 = 32_768;
@@ -12,6 +12,35 @@ pub const MAX_IMAGE_SIDE: u32 = 32_768;
 pub const MAX_PIXELS: u64 = 1 << 27;
 /// Most shadow rays per diffuse hit.
 pub const MAX_SHADOW_RAYS: u32 = 1024;
+
+/// Render settings a scene file may state; `None` leaves the choice to the caller.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDefaults {
+    /// Image width in pixels.
+    pub width: Option<u32>,
+    /// Image height in pixels.
+    pub height: Option<u32>,
+    /// Samples per pixel.
+    pub spp: Option<u32>,
+    /// Shadow rays per diffuse hit.
+    pub shadow_rays: Option<u32>,
+    /// Where the random numbers come from (`sampler = "independent" | "sobol"`).
+    pub sampler: Option<Sampler>,
+}
+
+impl SceneDefaults {
+    /// Fields of `over` replace those of `self` where set.
+    pub fn overridden_by(self, over: SceneDefaults) -> SceneDefaults {
+        SceneDefaults {
+            width: over.width.or(self.width),
+            height: over.height.or(self.height),
+            spp: over.spp.or(self.spp),
+            shadow_rays: over.shadow_rays.or(self.shadow_rays),
+            sampler: over.sampler.or(self.sampler),
+        }
+    }
+}
 
 /// Default noise threshold: a pixel's estimated error relative to the square root of its
 /// brightness (Cycles' measure, see [`crate::film::Film::pixel_error`]). Five times Cycles'

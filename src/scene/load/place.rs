@@ -1,11 +1,11 @@
 //! Placing imported models: the bare-model rule (a model that does not light itself goes
-//! into the seed room, as its subject, on the room's stage), `[[model]]` placement (a file
+//! into the hexagonal room, as its subject, on the room's stage), `[[model]]` placement (a file
 //! placed several times is loaded once: its meshes shared, its world copied), a
 //! framing camera for files without one, the choice of camera, and the dark-image check of
 //! files rendered as they are. These read and edit the authoring world (and, for the check,
 //! the finished image); rendering never comes here.
 
-use super::{BUILTIN_ROOM, Scene, scene_file};
+use super::shared::Scene;
 use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::math::{Affine3A, Vec3, luminance};
@@ -17,7 +17,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 /// The room camera's eye; it looks along +x with a 90 degree (square) view, so a point
-/// (x, y, z) is in view when |y| and |z| are at most x + 1. [`tests`] checks these against
+/// (x, y, z) is in view when |y| and |z| are at most x + 1. `scene_file.rs`'s tests check these against
 /// the room file.
 pub const ROOM_EYE: Vec3 = Vec3::new(-1.0, 0.0, 0.0);
 /// The room's floor height.
@@ -188,7 +188,7 @@ pub(super) fn fit_transform(lo: Vec3, hi: Vec3, size: f32, anchor: Vec3) -> Affi
 }
 
 /// The room's stage: where a model given in world space (+Z up, its front facing -Y, as
-/// glTF's +Z front comes out of the axis conversion) stands in the seed room as its subject.
+/// glTF's +Z front comes out of the axis conversion) stands in the hexagonal room as its subject.
 ///
 /// 1. It is turned about the vertical so that its front faces the room camera (-Y to -X),
 ///    unless it is more than [`FLAT_TURN_RATIO`] times deeper than wide: then it keeps its
@@ -432,9 +432,15 @@ pub(super) fn stage_model(
     Ok(())
 }
 
-/// The bare-model rule: the seed room with `model` as its subject, on the room's stage
-/// ([`room_stage_transform`]), seen by the room's camera. The model's cameras are dropped.
-pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
+/// The bare-model rule: the room that `room` builds with `model` as its subject, on the
+/// room's stage ([`room_stage_transform`]), seen by the room's camera. The model's cameras are
+/// dropped. The room is taken as a builder, not loaded here, so that placing depends on no
+/// scene format (the hexagonal room is a TOML scene, and the TOML format places models).
+pub(super) fn place_in_room(
+    model: Scene,
+    room: impl FnOnce() -> Result<Scene>,
+    path: &Path,
+) -> Result<Scene> {
     if bounding_box(&model.world).is_none() {
         return Err(Error::input(
             path,
@@ -442,7 +448,7 @@ pub fn place_in_room(model: Scene, path: &Path) -> Result<Scene> {
             "the file has no geometry to place",
         ));
     }
-    let mut room = scene_file::load(Path::new("builtin:room"), BUILTIN_ROOM)?;
+    let mut room = room()?;
     stage_model(&mut room.world, model.world, None, path)?;
     room.warnings.extend(model.warnings);
     Ok(room)
@@ -587,28 +593,6 @@ mod tests {
                 < 1e-6
         );
         assert!((t.transform_vector3(Vec3::new(0.0, 6.0, 0.0)).y - 3.0).abs() < 1e-6);
-    }
-
-    #[test]
-    fn the_stage_constants_are_those_of_the_room_file() {
-        let room = scene_file::load(Path::new("builtin:room"), BUILTIN_ROOM).unwrap();
-        let cameras: Vec<Camera> = room.world.query::<&Camera>().iter().copied().collect();
-        assert_eq!(cameras.len(), 1);
-        let c = cameras[0];
-        assert_eq!(c.eye, ROOM_EYE);
-        assert!((c.forward - Vec3::X).length() < 1e-6 && (c.up - Vec3::Z).length() < 1e-6);
-        assert!((c.vfov - 90f32.to_radians()).abs() < 1e-6);
-        let names: Vec<String> = room
-            .world
-            .query::<&Name>()
-            .iter()
-            .map(|n| n.0.clone())
-            .collect();
-        for prop in ROOM_PROPS {
-            assert!(names.iter().any(|n| n == prop), "{prop}");
-        }
-        let (lo, _) = bounding_box(&room.world).unwrap();
-        assert_eq!(lo.z, ROOM_FLOOR);
     }
 
     #[test]

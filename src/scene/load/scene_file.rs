@@ -1,27 +1,36 @@
-//! The TOML scene format: cameras, named materials, and the seed's primitives (triangle,
+//! The TOML scene format: cameras, named materials, and the built-in primitives (triangle,
 //! quad, polygon, tetrahedron, sphere) with transforms. A file may include others; the
 //! including file's camera and `[render]` settings win, its materials replace same-named ones,
 //! and shapes and models accumulate. `[[model]]` tables place glTF/OBJ files (relative to
-//! the scene file that names them). The README documents the format with `scenes/room.toml`.
+//! the scene file that names them) through `place.rs`. docs/scene-format.md documents the
+//! format with `scenes/room.toml`.
 
-use super::{
-    BUILTIN_ROOM, LightUnits, Scene, SceneDefaults, UpAxis, bounding_box, import_model_with, place,
-};
+use super::model::{LightUnits, import_model_with};
+use super::place::{self, bounding_box};
+use super::shared::{Scene, UpAxis};
 use crate::error::{Error, Result, closest_match};
 use crate::math::{Affine3A, Quat, Vec3};
 use crate::scene::{
     Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel, Material, Mesh, Name,
     Sphere, Transform,
 };
-use crate::settings::{MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SHADOW_RAYS};
+use crate::settings::{MAX_IMAGE_SIDE, MAX_PIXELS, MAX_SHADOW_RAYS, SceneDefaults};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toml::Spanned;
 
-/// Include target that names the built-in seed room instead of a file.
+/// The hexagonal room, built into the binary so that it works from any directory.
+pub const BUILTIN_ROOM: &str = include_str!("../../../scenes/room.toml");
+
+/// Include target that names the built-in hexagonal room instead of a file.
 const BUILTIN_ROOM_NAME: &str = "builtin:room";
+
+/// The built-in hexagonal room, loaded.
+pub(super) fn builtin_room() -> Result<Scene> {
+    load(Path::new(BUILTIN_ROOM_NAME), BUILTIN_ROOM)
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -46,7 +55,7 @@ struct ModelDef {
     /// Path relative to the scene file.
     file: Spanned<String>,
     /// Where the model's anchor lands: its origin, or with `fit` its bottom centre. Without
-    /// it, the model stands on the seed room's stage as a bare model does (and then takes no
+    /// it, the model stands on the hexagonal room's stage as a bare model does (and then takes no
     /// `rotation`, `scale` or `fit`).
     #[serde(default)]
     position: Option<[f32; 3]>,
@@ -881,6 +890,29 @@ fn tetrahedron_faces(p: &[Vec3]) -> std::result::Result<Vec<[u32; 3]>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::load::place::{ROOM_EYE, ROOM_FLOOR, ROOM_PROPS};
+
+    #[test]
+    fn the_stage_constants_are_those_of_the_room_file() {
+        let room = builtin_room().unwrap();
+        let cameras: Vec<Camera> = room.world.query::<&Camera>().iter().copied().collect();
+        assert_eq!(cameras.len(), 1);
+        let c = cameras[0];
+        assert_eq!(c.eye, ROOM_EYE);
+        assert!((c.forward - Vec3::X).length() < 1e-6 && (c.up - Vec3::Z).length() < 1e-6);
+        assert!((c.vfov - 90f32.to_radians()).abs() < 1e-6);
+        let names: Vec<String> = room
+            .world
+            .query::<&Name>()
+            .iter()
+            .map(|n| n.0.clone())
+            .collect();
+        for prop in ROOM_PROPS {
+            assert!(names.iter().any(|n| n == prop), "{prop}");
+        }
+        let (lo, _) = bounding_box(&room.world).unwrap();
+        assert_eq!(lo.z, ROOM_FLOOR);
+    }
 
     #[test]
     fn tetrahedron_faces_point_outward() {

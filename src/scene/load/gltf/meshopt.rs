@@ -9,7 +9,7 @@
 //! assert them. A view that cannot be decoded keeps its uncompressed data when its buffer has
 //! any; otherwise the primitives that read it are dropped, with one warning naming the view.
 
-use super::gltf_fix::plural;
+use super::fix::plural;
 use gltf::json::Value;
 use std::collections::BTreeMap;
 use std::path::Path;

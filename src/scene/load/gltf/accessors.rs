@@ -1,7 +1,9 @@
-//! Vertex data of glTF meshes beyond plain floats: attributes of any component type
+//! The data of glTF accessors beyond plain floats: attributes of any component type
 //! (`KHR_mesh_quantization`: byte, short, normalized or not) read and dequantized as the
-//! specification says, and the error for compressed geometry wavetrace cannot decode
-//! (`KHR_draco_mesh_compression`; meshopt is decoded by `gltf_meshopt`).
+//! specification says, sparse accessors applied, and the error for compressed geometry
+//! wavetrace cannot decode (`KHR_draco_mesh_compression`; meshopt is decoded by
+//! `meshopt.rs`). Primitives (`primitives.rs`), deformations (`deform.rs`) and GPU
+//! instances (`nodes.rs`) read their numbers here.
 
 use gltf::accessor::DataType;
 
@@ -215,7 +217,7 @@ mod tests {
             draco.contains("Draco") && draco.contains("re-export"),
             "{draco}"
         );
-        // Decoded (gltf_meshopt), not refused.
+        // Decoded (meshopt.rs), not refused.
         assert!(compression_message("EXT_meshopt_compression").is_none());
         assert!(compression_message("KHR_texture_transform").is_none());
     }

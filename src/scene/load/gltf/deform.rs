@@ -6,8 +6,18 @@
 //! mesh's own node transform is ignored and only the joints' transforms apply, so its entity
 //! gets the identity [`crate::scene::Transform`].
 
-use super::gltf_geometry::read_floats;
+use super::accessors::read_floats;
 use crate::math::{Affine3A, Mat3, Mat4, Vec3, Vec4};
+
+/// How a node deforms its mesh.
+pub(super) struct Deform<'a> {
+    /// Morph target weights (the node's, else the mesh's; empty: none).
+    pub(super) weights: &'a [f32],
+    /// The skin's joint matrices when the node has a skin that could be posed.
+    pub(super) joints: Option<&'a [Affine3A]>,
+    /// The node's world transform, for skinned vertices without weights.
+    pub(super) world_from_node: Affine3A,
+}
 
 /// Every node's world transform (`world_from_file` times its ancestors' transforms) when the
 /// node is reachable from `roots` without a cycle; `None` for the others.

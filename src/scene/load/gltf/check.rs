@@ -1,7 +1,8 @@
 //! Checks on glTF input that the `gltf` crate leaves out or reports without a place: the GLB
 //! container, JSON syntax, buffer files, buffer view and accessor ranges, cameras. Each error
 //! names the file, the place (byte, line and column, buffer, view, accessor, node) and the
-//! problem, so that the importer (`gltf.rs`) can read what passes without surprises.
+//! problem, so that the importer (`mod.rs` and the files it lists) can read what passes without
+//! surprises.
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -117,7 +118,7 @@ pub(super) fn path_is_glb(path: &Path) -> bool {
 
 /// Loads every buffer (external file, data URI or the GLB's BIN chunk), naming the buffer
 /// and its file when one is missing, unreadable or shorter than its `byteLength`; the meshopt
-/// placeholders (`placeholders[i]`, see `gltf_meshopt::placeholder_buffers`) stay empty.
+/// placeholders (`placeholders[i]`, see `meshopt::placeholder_buffers`) stay empty.
 pub(super) fn import_buffers(
     path: &Path,
     document: &gltf::Document,
@@ -310,6 +311,14 @@ fn accessor_location(document: &gltf::Document, accessor: &gltf::Accessor) -> St
         }
     }
     format!("accessor {index}")
+}
+
+/// "node 'Lamp' (index 4)": a node as errors and warnings name it.
+pub(super) fn node_location(node: &gltf::Node) -> String {
+    match node.name() {
+        Some(n) => format!("node '{n}' (index {})", node.index()),
+        None => format!("node {}", node.index()),
+    }
 }
 
 /// A perspective camera's field of view must lie in (0, pi) and its aspect ratio, if given,

@@ -10,7 +10,7 @@
 //! that names an accessor the file does not have is removed with a warning; a texture's image is
 //! chosen among its sources (`EXT_texture_webp`, the core `source`, `KHR_texture_basisu`).
 
-use super::gltf_check;
+use super::check;
 use crate::error::{Error, Result};
 use gltf::json::Value;
 use std::collections::BTreeMap;
@@ -59,7 +59,7 @@ pub(super) fn parse_root(
     warnings: &mut Vec<String>,
 ) -> Result<gltf::json::Root> {
     let mut value: Value = gltf::json::deserialize::from_slice(json)
-        .map_err(|e| gltf_check::json_error(path, json, in_glb, &e))?;
+        .map_err(|e| check::json_error(path, json, in_glb, &e))?;
     if !value.is_object() {
         return Err(Error::input(
             path,
@@ -71,7 +71,7 @@ pub(super) fn parse_root(
     gltf::json::deserialize::from_value(value).map_err(|e| {
         // The patched tree has no lines: parse the original text again for the location.
         match gltf::json::deserialize::from_slice::<gltf::json::Root>(json) {
-            Err(located) => gltf_check::json_error(path, json, in_glb, &located),
+            Err(located) => check::json_error(path, json, in_glb, &located),
             Ok(_) => Error::input(path, None, format!("invalid glTF: {e}")),
         }
     })

@@ -11,7 +11,7 @@
 //! on the next; index 0 is invalid; a negative index counts back from the last element
 //! defined above the line; a positive one may refer forward, but not past the file's last
 //! element. `l` lines, `p` points and faces of fewer than three vertices are skipped with one
-//! warning each. Polygons are cut into ears ([`super::obj::triangulate_polygon`]) as they are
+//! warning each. Polygons are cut into ears ([`super::polygons::triangulate_polygon`]) as they are
 //! read; one referring forward waits until its run's vertices are gathered at the end.
 
 use crate::error::{Error, Result};
@@ -562,7 +562,7 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
             self.face_polygon.push(k as u32);
         }
         self.face_triangles.clear();
-        if let Err(why) = super::obj::triangulate_polygon(
+        if let Err(why) = super::polygons::triangulate_polygon(
             &self.face_positions,
             &self.face_polygon,
             &mut self.face_triangles,
@@ -994,7 +994,7 @@ impl<'p, L: FnMut(&Path) -> tobj::MTLLoadResult> Reader<'p, L> {
                 .iter()
                 .map(|&local| positions[local as usize])
                 .collect();
-            if let Err(why) = super::obj::triangulate_polygon(
+            if let Err(why) = super::polygons::triangulate_polygon(
                 &corner_positions,
                 &identity,
                 &mut self.face_triangles,
@@ -1543,7 +1543,7 @@ mod tests {
         let mut expected = Vec::new();
         let polygon: Vec<u32> = (0..6).collect();
         let positions = &above.runs[0].mesh.positions;
-        super::super::obj::triangulate_polygon(positions, &polygon, &mut expected).unwrap();
+        super::super::polygons::triangulate_polygon(positions, &polygon, &mut expected).unwrap();
         assert_eq!(expected.len(), 4);
         assert_eq!(above.runs[0].mesh.indices, expected);
         assert_eq!(below.runs[0].mesh.indices, expected);

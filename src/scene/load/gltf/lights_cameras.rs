@@ -1,0 +1,89 @@
+//! A glTF node's camera and `KHR_lights_punctual` light as entities: a perspective camera
+//! becomes a [`Camera`] in world space (an orthographic one is skipped with a warning), a
+//! light a [`PunctualLight`] at the node, in the file's own numbers (`LightUnits` scales them
+//! afterwards, in `scene/load/model.rs`).
+
+use super::check::{check_perspective, node_location};
+use crate::error::{Error, Result};
+use crate::math::{Affine3A, Rgb, Vec3};
+use crate::scene::{Camera, Name, PunctualLight, Transform};
+use gltf::khr_lights_punctual::Kind as LightKind;
+use std::path::Path;
+
+/// Spawns the node's camera, if it has one that can be rendered from.
+pub(super) fn spawn_camera(
+    world: &mut hecs::World,
+    node: &gltf::Node,
+    name: &str,
+    world_from_node: Affine3A,
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<()> {
+    let Some(camera) = node.camera() else {
+        return Ok(());
+    };
+    match camera.projection() {
+        gltf::camera::Projection::Perspective(p) => {
+            check_perspective(&p)
+                .map_err(|message| Error::input(path, Some(node_location(node)), message))?;
+            world.spawn((Name(name.to_string()), camera_of(&world_from_node, &p)));
+        }
+        gltf::camera::Projection::Orthographic(_) => warnings.push(format!(
+            "camera '{name}': orthographic cameras are not supported; skipped"
+        )),
+    }
+    Ok(())
+}
+
+/// A glTF camera (looking down its node's -Z with +Y up) in world space.
+fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camera {
+    let eye = world_from_node.transform_point3(Vec3::ZERO);
+    let forward = world_from_node
+        .transform_vector3(Vec3::NEG_Z)
+        .normalize_or(Vec3::NEG_Z);
+    let up_hint = world_from_node.transform_vector3(Vec3::Y);
+    let right = forward.cross(up_hint).normalize_or(Vec3::X);
+    Camera {
+        eye,
+        forward,
+        up: right.cross(forward),
+        vfov: p.yfov(),
+        aspect_ratio: p.aspect_ratio(),
+    }
+}
+
+/// Spawns the node's light, if it has one; its colour times intensity must be finite and
+/// non-negative.
+pub(super) fn spawn_light(
+    world: &mut hecs::World,
+    node: &gltf::Node,
+    name: &str,
+    world_from_node: Affine3A,
+    path: &Path,
+) -> Result<()> {
+    let Some(light) = node.light() else {
+        return Ok(());
+    };
+    let colour = Rgb::from(light.color()) * light.intensity();
+    let punctual = match light.kind() {
+        LightKind::Point => PunctualLight::Point { intensity: colour },
+        LightKind::Directional => PunctualLight::Directional { irradiance: colour },
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => PunctualLight::Spot {
+            intensity: colour,
+            inner_cone: inner_cone_angle,
+            outer_cone: outer_cone_angle,
+        },
+    };
+    if !colour.is_finite() || colour.min_element() < 0.0 {
+        return Err(Error::input(
+            path,
+            Some(node_location(node)),
+            "light colour and intensity must be finite and non-negative",
+        ));
+    }
+    world.spawn((Name(name.to_string()), Transform(world_from_node), punctual));
+    Ok(())
+}
