@@ -215,20 +215,76 @@ pub(super) fn plural(n: usize) -> &'static str {
 /// One warning per feature the file uses that the importer ignores or approximates (the
 /// material-level ones are counted over the materials meshes use or not alike).
 pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<String>) {
-    let file = path.display();
-    let mut count = |what: &str, n: usize, unit: &str| {
-        if n > 0 {
-            warnings.push(format!("{file}: {what} ({n} {unit}{})", plural(n)));
-        }
-    };
     let materials: Vec<gltf::Material> = document.materials().collect();
+    survey_material_features(path, &materials, warnings);
+    let ignored = ignored_material_extensions(&materials);
+    for (name, n) in &ignored {
+        warn_count(
+            path,
+            warnings,
+            &format!("{name} is ignored"),
+            *n,
+            "material",
+        );
+    }
+    let primitives: Vec<gltf::Primitive> = document.meshes().flat_map(|m| m.primitives()).collect();
+    warn_count(
+        path,
+        warnings,
+        "KHR_materials_variants is ignored: the default materials are shown",
+        primitives
+            .iter()
+            .filter(|p| p.extension_value("KHR_materials_variants").is_some())
+            .count(),
+        "primitive",
+    );
+    warn_count(
+        path,
+        warnings,
+        "minification filters are ignored: textures are sampled bilinearly without mipmaps",
+        document
+            .samplers()
+            .filter(|s| {
+                use gltf::texture::MinFilter as F;
+                matches!(
+                    s.min_filter(),
+                    Some(F::Nearest | F::NearestMipmapNearest | F::NearestMipmapLinear)
+                )
+            })
+            .count(),
+        "sampler",
+    );
+    let file = path.display();
+    for name in document.extensions_used() {
+        if !SUPPORTED_REQUIRED.contains(&name)
+            && !KNOWN.contains(&name)
+            && !ignored.contains_key(name)
+        {
+            warnings.push(format!(
+                "{file}: the extension {name} is not supported; ignored"
+            ));
+        }
+    }
+}
+
+/// "file: what (n units)", when `n` is not zero.
+fn warn_count(path: &Path, warnings: &mut Vec<String>, what: &str, n: usize, unit: &str) {
+    if n > 0 {
+        let file = path.display();
+        warnings.push(format!("{file}: {what} ({n} {unit}{})", plural(n)));
+    }
+}
+
+/// The warnings about material features that are read only in part: occlusion maps, the
+/// textures of clearcoat and sheen, clearcoat over emission, volume thickness.
+fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings: &mut Vec<String>) {
+    let mut count = |what: &str, n: usize| warn_count(path, warnings, what, n, "material");
     count(
         "occlusion maps are ignored",
         materials
             .iter()
             .filter(|m| m.occlusion_texture().is_some())
             .count(),
-        "material",
     );
     let with_keys = |extension: &str, keys: &[&str]| {
         materials
@@ -250,7 +306,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
                 "clearcoatNormalTexture",
             ],
         ),
-        "material",
     );
     count(
         "KHR_materials_sheen textures (sheenColorTexture, sheenRoughnessTexture) are ignored: \
@@ -259,7 +314,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             "KHR_materials_sheen",
             &["sheenColorTexture", "sheenRoughnessTexture"],
         ),
-        "material",
     );
     count(
         "KHR_materials_clearcoat does not darken emission (the specification scales it by \
@@ -273,7 +327,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
                         .is_some_and(|c| c > 0.0)
             })
             .count(),
-        "material",
     );
     count(
         "KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is ignored: the \
@@ -282,8 +335,12 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             "KHR_materials_volume",
             &["thicknessFactor", "thicknessTexture"],
         ),
-        "material",
     );
+}
+
+/// Material extensions wavetrace neither reads nor knows to be harmless, with the number of
+/// materials that use each.
+fn ignored_material_extensions(materials: &[gltf::Material]) -> BTreeMap<String, usize> {
     let handled = [
         "KHR_materials_clearcoat",
         "KHR_materials_sheen",
@@ -297,49 +354,14 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "KHR_materials_volume",
     ];
     let mut ignored = BTreeMap::<String, usize>::new();
-    for m in &materials {
+    for m in materials {
         for name in m.extensions().into_iter().flat_map(|e| e.keys()) {
             if !handled.contains(&name.as_str()) {
                 *ignored.entry(name.clone()).or_default() += 1;
             }
         }
     }
-    for (name, n) in &ignored {
-        count(&format!("{name} is ignored"), *n, "material");
-    }
-    let primitives: Vec<gltf::Primitive> = document.meshes().flat_map(|m| m.primitives()).collect();
-    count(
-        "KHR_materials_variants is ignored: the default materials are shown",
-        primitives
-            .iter()
-            .filter(|p| p.extension_value("KHR_materials_variants").is_some())
-            .count(),
-        "primitive",
-    );
-    count(
-        "minification filters are ignored: textures are sampled bilinearly without mipmaps",
-        document
-            .samplers()
-            .filter(|s| {
-                use gltf::texture::MinFilter as F;
-                matches!(
-                    s.min_filter(),
-                    Some(F::Nearest | F::NearestMipmapNearest | F::NearestMipmapLinear)
-                )
-            })
-            .count(),
-        "sampler",
-    );
-    for name in document.extensions_used() {
-        if !SUPPORTED_REQUIRED.contains(&name)
-            && !KNOWN.contains(&name)
-            && !ignored.contains_key(name)
-        {
-            warnings.push(format!(
-                "{file}: the extension {name} is not supported; ignored"
-            ));
-        }
-    }
+    ignored
 }
 
 #[cfg(test)]
