@@ -497,7 +497,7 @@ mod tests {
     /// change at all.
     #[test]
     fn scenes_without_delta_surfaces_render_as_before() {
-        let mut scene = crate::wavefront::next_event::tests::room();
+        let mut scene = crate::wavefront::tests::room();
         let settings = RenderSettings {
             width: 24,
             height: 20,

@@ -457,8 +457,16 @@ fn timed<T>(total: &mut Duration, f: impl FnOnce() -> T) -> T {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The room of `scenes/room.toml` (one area light, walls on every side, a mirror and a
+    /// glass sphere), for the stages' tests.
+    pub(crate) fn room() -> RenderScene {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
+        let scene = crate::scene::load::load_scene(&path).expect("the room loads");
+        crate::flatten::flatten(&scene.world, &path).expect("the room flattens")
+    }
 
     #[test]
     fn many_shadow_rays_shrink_the_batch_to_the_memory_budget() {

@@ -285,19 +285,12 @@ fn sample_lights<const THROUGH: bool>(
 }
 
 #[cfg(test)]
-pub(super) mod tests {
+mod tests {
     use super::*;
     use crate::bsdf::{Layered, MetallicRoughness};
     use crate::math::rng::{Sampler, path_key, uniform};
     use crate::render_scene::RenderScene;
     use crate::wavefront::batch::ShadowBatch;
-
-    /// The seed room (one area light, walls on every side).
-    pub(in crate::wavefront) fn room() -> RenderScene {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
-        let scene = crate::scene::load::load_scene(&path).expect("the room loads");
-        crate::flatten::flatten(&scene.world, &path).expect("the room flattens")
-    }
 
     /// The shadow rays one estimator writes: the count, the origin, the back side's count,
     /// and the kept entries.
@@ -354,7 +347,7 @@ pub(super) mod tests {
     /// shadow-ray counts that fill the last group of four or not, with and without MIS.
     #[test]
     fn the_front_side_estimator_is_the_general_one_on_opaque_surfaces() {
-        let scene = room();
+        let scene = crate::wavefront::tests::room();
         let base = MetallicRoughness::new(Rgb::new(0.9, 0.6, 0.3), 0.0, 0.4);
         let bsdfs = [
             Bsdf::Lambertian {

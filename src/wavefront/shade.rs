@@ -102,7 +102,7 @@ mod tests {
     /// mirror and a smooth glass sphere, whose delta lobes need no shadow rays through them).
     #[test]
     fn the_opaque_scene_path_renders_what_the_general_path_renders() {
-        let mut scene = crate::wavefront::next_event::tests::room();
+        let mut scene = crate::wavefront::tests::room();
         assert!(!scene.transmits_or_absorbs, "the room is opaque");
         let settings = RenderSettings {
             width: 40,

@@ -176,13 +176,17 @@ pub(super) fn shade_one<const THROUGH: bool>(
         };
         let throughput = *path.throughput;
         let shadow = &mut next_event.shadow;
-        connect_light_vertex::<THROUGH>(scene, params, key, &at(), throughput, media, shadow);
+        let (key, at) = ((key, bounce), at());
+        connect_light_vertex::<THROUGH>(scene, params, key, &at, throughput, media, shadow);
     }
 
     // --- BSDF sampling for the next ray.
     let u_lobe = params.sampler.uniform(key, bounce, dim::BSDF_LOBE);
-    let u_direction = params.sampler.uniform2(key, bounce, dim::BSDF_DIRECTION);
-    let Some(sample) = bsdf.sample(wo_local, u_lobe, u_direction) else {
+    let Some(sample) = bsdf.sample(
+        wo_local,
+        u_lobe,
+        params.sampler.uniform2(key, bounce, dim::BSDF_DIRECTION),
+    ) else {
         return false;
     };
     let wi = frame.to_world(sample.wi);
@@ -190,7 +194,8 @@ pub(super) fn shade_one<const THROUGH: bool>(
     if ((ng.dot(wi) > 0.0) == front) == transmitted {
         return false; // the shading normal sent the ray through the wrong side of the surface
     }
-    *path.caustic = caustic_state_after(params, path, &sample, &hit, [ng.dot(wi), ng.dot(wo)]);
+    let cos_ng = [ng.dot(wi), ng.dot(wo)];
+    *path.caustic = caustic_state_after(params, bounce, path, &sample, &hit, cos_ng);
     *path.throughput *= sample.weight;
     if transmitted {
         *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
@@ -267,8 +272,9 @@ fn escaped(
     *path.radiance += *path.throughput * environment.eval(hit.direction) * weight;
 }
 
-/// The connection of the camera vertex `at` (reached with `throughput`, its two sides in
-/// `media`) to one of the pass's light vertices, picked with the path's own numbers: caustics
+/// The connection of the camera vertex `at` (reached with `throughput` at `bounce`, its two
+/// sides in `media`) to one of the pass's light vertices, picked with the path's own numbers
+/// (`key`): caustics
 /// seen after this bounce ([`super::light_vertices`]). Writes one more shadow ray into the
 /// path's slots, from the side it leaves: after the front rays of next-event estimation, or
 /// before its back rays.
@@ -276,7 +282,7 @@ fn escaped(
 fn connect_light_vertex<const THROUGH: bool>(
     scene: &RenderScene,
     params: &ShadeParams,
-    key: u64,
+    (key, bounce): (u64, u32),
     at: &ShadingPoint,
     throughput: Rgb,
     media: Media,
@@ -286,9 +292,7 @@ fn connect_light_vertex<const THROUGH: bool>(
         return;
     };
     let slots = caustics.light_path_count;
-    let pick = params
-        .sampler
-        .index(key, params.bounce, dim::LIGHT_VERTEX, slots) as usize;
+    let pick = params.sampler.index(key, bounce, dim::LIGHT_VERTEX, slots) as usize;
     let camera_vertex = CameraVertex {
         p: at.p,
         ng: at.ng,
@@ -297,7 +301,7 @@ fn connect_light_vertex<const THROUGH: bool>(
         bsdf: at.bsdf,
         wo_local: at.wo_local,
         throughput,
-        bounce: params.bounce,
+        bounce,
     };
     let vertices = caustics.light_vertices;
     let Some(connection) =
@@ -343,6 +347,7 @@ fn connect_light_vertex<const THROUGH: bool>(
 #[inline(always)]
 fn caustic_state_after(
     params: &ShadeParams,
+    bounce: u32,
     path: &PathView,
     sample: &BsdfSample,
     hit: &Hit,
@@ -355,7 +360,7 @@ fn caustic_state_after(
     let previous_pdf = *path.bsdf_pdf;
     if sample.is_delta {
         path.caustic.after_delta_bounce()
-    } else if params.bounce == 0 {
+    } else if bounce == 0 {
         let camera_density = caustics.camera.direction_density(hit.direction);
         let factor =
             camera_vertex_factor(cos_x1, sample.pdf, to_previous_cos, hit.t, camera_density);
