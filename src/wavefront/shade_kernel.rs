@@ -274,10 +274,9 @@ fn escaped(
 
 /// The connection of the camera vertex `at` (reached with `throughput` at `bounce`, its two
 /// sides in `media`) to one of the pass's light vertices, picked with the path's own numbers
-/// (`key`): caustics
-/// seen after this bounce ([`super::light_vertices`]). Writes one more shadow ray into the
-/// path's slots, from the side it leaves: after the front rays of next-event estimation, or
-/// before its back rays.
+/// (`key`): caustics seen after this bounce ([`super::light_vertices`]). Writes one more
+/// shadow ray into the path's slots, from the side it leaves: after the front rays of
+/// next-event estimation, or before its back rays.
 #[inline(always)]
 fn connect_light_vertex<const THROUGH: bool>(
     scene: &RenderScene,
@@ -343,7 +342,7 @@ fn connect_light_vertex<const THROUGH: bool>(
 /// before it gives (with its strategy's count): the camera connects to the pass's `n` light
 /// paths, a non-delta vertex to one light vertex (`path.bsdf_pdf`, still the density of that
 /// vertex's sample, is 0 after a delta vertex or without MIS: then nothing connects to `x1`).
-/// `cos_ng` are `ng . wi` and `ng . wo` at this vertex, reached by `hit`.
+/// `cos_ng` are `ng . wi` and `ng . wo` at this vertex, reached by `hit` at `bounce`.
 #[inline(always)]
 fn caustic_state_after(
     params: &ShadeParams,
