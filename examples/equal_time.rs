@@ -2,7 +2,7 @@
 //! at the reference's size for a time budget or a number of samples per pixel, once per seed,
 //! and prints RMSE, MSE, relative MSE (mean of `(x - ref)^2 / (ref^2 + 0.01)` over pixels and
 //! channels) and the share of the squared error in the worst 1% of pixels (see
-//! `wavetrace::image_error`), then their means over the seeds and the MSE times the seconds
+//! `examples/common/image_error.rs`), then their means over the seeds and the MSE times the seconds
 //! (inverse efficiency: lower is better, and equal for two renderers whose error falls as
 //! 1/time alike).
 //!
@@ -20,11 +20,16 @@
 //! reconstruction filter), with a seed none of the runs use. With several seeds, `--write`
 //! writes the last one's image.
 
+// The error measures, shared with `image_error` (each example uses part of them).
+#[allow(dead_code)]
+#[path = "common/image_error.rs"]
+mod image_error;
+
 use anyhow::{Context, bail};
 use clap::{Parser, ValueEnum};
+use image_error::{ImageError, image_error};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use wavetrace::internals::image_error::{ImageError, image_error};
 use wavetrace::math::rng::Sampler;
 use wavetrace::output::read_exr;
 use wavetrace::settings::{Adaptive, DEFAULT_MIN_SPP};

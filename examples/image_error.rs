@@ -1,11 +1,16 @@
 //! Error of linear EXR images against a reference: RMSE (overall and per channel), relative
 //! MSE and the share of the squared error in the worst 1% of pixels (see
-//! `wavetrace::image_error`), for noise comparisons (README, "Multiple importance sampling").
+//! `examples/common/image_error.rs`), for noise comparisons (README, "Multiple importance sampling").
 //!
 //! `cargo run --release --example image_error -- reference.exr a.exr [b.exr ...]`
 
+// The error measures, shared with `equal_time` (each example uses part of them).
+#[allow(dead_code)]
+#[path = "common/image_error.rs"]
+mod image_error;
+
+use image_error::image_error;
 use std::path::Path;
-use wavetrace::internals::image_error::image_error;
 use wavetrace::output::read_exr;
 
 fn main() -> anyhow::Result<()> {

@@ -27,14 +27,12 @@
 #![forbid(unsafe_code)]
 
 pub(crate) mod accel;
-pub(crate) mod alpha;
 pub(crate) mod bsdf;
 pub(crate) mod camera;
 pub mod error;
 pub mod film;
 pub(crate) mod flatten;
 pub(crate) mod geometry;
-pub(crate) mod image_error;
 pub(crate) mod lights;
 pub mod math;
 pub(crate) mod memory;
@@ -47,11 +45,9 @@ pub(crate) mod wavefront;
 
 pub use error::{Error, Result};
 pub use film::{Film, Image, Pixels};
-pub use flatten::{
-    FlattenTimes, INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing, flatten, flatten_with,
-};
+pub use flatten::{INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing, flatten, flatten_with};
 pub use output::write_image;
-pub use render_scene::RenderScene;
+pub use render_scene::{FlattenTimes, RenderScene};
 pub use scene::{Scene, load_scene};
 pub use settings::{RenderOverrides, RenderSettings};
 pub use wavefront::stats::RenderStats;
@@ -74,11 +70,7 @@ pub mod internals {
     pub use crate::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
     pub use crate::wavefront::generate::generate_camera_rays;
     pub use crate::wavefront::intersect::intersect_closest;
-    pub use crate::wavefront::shade::{ShadeParams, shade_hits};
+    pub use crate::wavefront::params::ShadeParams;
+    pub use crate::wavefront::shade::shade_hits;
     pub use crate::wavefront::shadow::trace_shadow_rays;
-
-    /// Error measures between an image and a reference (for the examples).
-    pub mod image_error {
-        pub use crate::image_error::*;
-    }
 }

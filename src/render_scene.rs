@@ -5,14 +5,13 @@
 //! shadow packets and ray batches.
 
 use crate::accel::ClosestHitPath;
+use crate::accel::alpha::{AlphaRecord, OPAQUE, alpha_covers};
 use crate::accel::build::Bvh4;
 use crate::accel::instances::Instances;
 use crate::accel::leaf_prims::{LeafPrim, closest_in_leaf, closest_in_node};
 use crate::accel::occluders::Occluders;
 use crate::accel::ray_batches;
-use crate::alpha::{AlphaRecord, RayKey};
 use crate::bsdf::Bsdf;
-use crate::flatten::FlattenTimes;
 use crate::geometry::Shape;
 use crate::geometry::sphere::intersect_sphere;
 use crate::geometry::triangle::{OriginTerms, intersect_triangle_from};
@@ -22,14 +21,27 @@ use crate::scene::Camera;
 use crate::texture::{SurfaceTextures, Texture, TexturedEmission};
 use obvhs::aabb::Aabb;
 use std::sync::Arc;
+use std::time::Duration;
 
 // The query API's types, so that its callers need not know the accelerators' modules.
+pub use crate::accel::alpha::RayKey;
 pub use crate::accel::packet::{PACKET_SIZE, Packet};
-pub use crate::accel::ray_batches::Ray;
 pub use crate::accel::traverse::TraversalStack;
+pub use crate::math::Ray;
 
 /// Marks a primitive that emits nothing in [`RenderScene::emitter`].
 pub const NO_EMITTER: u32 = u32::MAX;
+
+/// How long [`crate::flatten()`] took (wall time), kept with the scene it made.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FlattenTimes {
+    /// The BVH build alone: obvhs's binary tree over the primitives' boxes and its collapse
+    /// into 4-wide nodes (what a ray-tracing library's build does).
+    pub bvh_build: Duration,
+    /// All of it: the meshes' world-space triangles, the BVH, and every per-primitive column
+    /// in slot order.
+    pub total: Duration,
+}
 
 /// The render-side scene: immutable, world space, shared by reference across threads.
 pub struct RenderScene {
@@ -41,8 +53,7 @@ pub struct RenderScene {
     pub(crate) closest_hit_path: ClosestHitPath,
     /// Per-vertex shading normals per slot (unit, world space); all zero for flat shading
     /// and for spheres.
-    #[doc(hidden)]
-    pub vertex_normals: Vec<[Vec3; 3]>,
+    pub(crate) vertex_normals: Vec<[Vec3; 3]>,
     /// Texture coordinates of the three vertices per slot (zero when the mesh has none);
     /// read only for textured materials.
     pub(crate) vertex_uvs: Vec<[Vec2; 3]>,
@@ -52,7 +63,7 @@ pub struct RenderScene {
     /// Linear RGBA colours of the three vertices per slot (white where the mesh has none,
     /// see [`VertexColors`](crate::scene::VertexColors)); empty unless some mesh has them.
     pub(crate) vertex_colors: Vec<[Vec4; 3]>,
-    /// Per slot, its index into `alpha_records`, or [`crate::alpha::OPAQUE`]; empty when
+    /// Per slot, its index into `alpha_records`, or [`OPAQUE`]; empty when
     /// every primitive is opaque.
     pub(crate) alpha_of_slot: Vec<u32>,
     /// How the alpha-tested meshes are covered.
@@ -62,8 +73,7 @@ pub struct RenderScene {
     /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
     pub(crate) emitter: Vec<u32>,
     /// Distinct materials.
-    #[doc(hidden)]
-    pub materials: Vec<Bsdf>,
+    pub(crate) materials: Vec<Bsdf>,
     /// Absorption coefficient of the medium inside each material (`KHR_materials_volume`),
     /// by material index; empty when no material absorbs.
     pub(crate) material_absorption: Vec<Rgb>,
@@ -71,14 +81,11 @@ pub struct RenderScene {
     /// the shade stage's choice of its path (`wavefront::shade::shade_hits`).
     pub(crate) transmits_or_absorbs: bool,
     /// Textures per material, looked up at the hit's texture coordinates.
-    #[doc(hidden)]
-    pub material_textures: Vec<SurfaceTextures>,
+    pub(crate) material_textures: Vec<SurfaceTextures>,
     /// Distinct textures.
-    #[doc(hidden)]
-    pub textures: Vec<Arc<Texture>>,
+    pub(crate) textures: Vec<Arc<Texture>>,
     /// Emitting primitives, punctual lights and the environment.
-    #[doc(hidden)]
-    pub lights: LightTable,
+    pub(crate) lights: LightTable,
     /// Whether camera rays that miss everything see the environment (else black).
     pub(crate) environment_visible: bool,
     /// Per area light (as `lights.lights`), its emission texture; empty when no light has one.
@@ -275,7 +282,7 @@ impl RenderScene {
     }
 
     /// [`Self::closest_hit`] for the ray `key` of a path: hits on alpha-tested primitives
-    /// that do not cover the point (see [`crate::alpha`]) are passed through.
+    /// that do not cover the point (see [`crate::accel::alpha`]) are passed through.
     #[inline]
     pub(crate) fn closest_covered_hit(
         &self,
@@ -345,7 +352,7 @@ impl RenderScene {
                         for slot in first..first + count {
                             let t = prims[slot as usize].hit_t(origin, direction, best.1);
                             if t < best.1
-                                && (alpha[slot as usize] == crate::alpha::OPAQUE
+                                && (alpha[slot as usize] == OPAQUE
                                     || self.covers(slot, origin, direction, key))
                             {
                                 best = (slot, t);
@@ -391,7 +398,7 @@ impl RenderScene {
                 .any_hit(stack, origin, direction, t_max, |slot, t_max| {
                     let t = prims[slot as usize].hit_t(origin, direction, t_max);
                     let covered = t == f32::INFINITY
-                        || self.alpha_of_slot[slot as usize] == crate::alpha::OPAQUE
+                        || self.alpha_of_slot[slot as usize] == OPAQUE
                         || self.covers(slot, origin, direction, key);
                     if covered { t } else { f32::INFINITY }
                 });
@@ -493,7 +500,7 @@ impl RenderScene {
                     }
                 }
             }
-            if ALPHA && blocked != 0 && self.alpha_of_slot[slot as usize] != crate::alpha::OPAQUE {
+            if ALPHA && blocked != 0 && self.alpha_of_slot[slot as usize] != OPAQUE {
                 // (No occluders' tree in these scenes: `slot` is the scene's slot.)
                 let mut candidates: u32 = blocked;
                 while candidates != 0 {
@@ -510,6 +517,31 @@ impl RenderScene {
             }
             blocked
         })
+    }
+
+    /// Whether the ray `origin + t direction` of `key`, which hits the primitive in `slot`
+    /// (a flagged slot: `alpha_of_slot[slot] != OPAQUE`), stops there: the alpha at the hit
+    /// point (the material's factor x the texture's x the vertex colour's) as
+    /// [`alpha_covers`] tests it.
+    #[inline(never)]
+    pub(crate) fn covers(&self, slot: u32, origin: Vec3A, direction: Vec3A, key: RayKey) -> bool {
+        let record = &self.alpha_records[self.alpha_of_slot[slot as usize] as usize];
+        let s = slot as usize;
+        let mut alpha = record.factor;
+        if record.texture.is_set() || record.vertex_alpha {
+            let b = self.shape(s).barycentric(origin, direction);
+            let at = |v: [f32; 3], b: Vec2| v[0] * (1.0 - b.x - b.y) + v[1] * b.x + v[2] * b.y;
+            if record.vertex_alpha {
+                alpha *= at(self.vertex_colors[s].map(|c| c.w), b);
+            }
+            if record.texture.is_set() {
+                let uvs = self.vertex_uvs[s];
+                let uv = uvs[0] * (1.0 - b.x - b.y) + uvs[1] * b.x + uvs[2] * b.y;
+                let t = &record.texture;
+                alpha *= self.textures[t.texture as usize].lookup_alpha(t.uv_transform.apply(uv));
+            }
+        }
+        alpha_covers(record.mode, alpha, slot, key)
     }
 
     /// The closest hit of every ray, as [`RenderScene::closest_hit`] gives it (slot and

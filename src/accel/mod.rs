@@ -11,6 +11,7 @@
 //! [`occluders`] finds the primitives that can block shadow rays, and [`ray_batches`] casts
 //! large batches of independent rays in a cache-friendly order.
 
+pub mod alpha;
 pub mod build;
 mod chunks;
 pub mod instances;

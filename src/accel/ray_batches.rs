@@ -1,25 +1,15 @@
-//! Queries over large batches of independent rays (a ray-casting client's view of the scene,
-//! as Embree's stream calls are): the rays are cast in Morton order of their origins, so that
+//! The order in which large batches of independent rays are cast, for the ray-casting
+//! queries of `RenderScene` (`closest_hits`, `occlusions`: a client's view of the scene, as
+//! Embree's stream calls are): the rays are cast in Morton order of their origins, so that
 //! rays cast one after another start in the same part of the tree and meet the same nodes
 //! and triangles while they are still in cache; the answers come back in the caller's order.
 //! In a scene that outgrows the caches this is worth far more than the sort costs (see the
 //! README's ray-casting figures); the answers are exactly those of the one-ray queries.
 
 use super::traverse::TraversalStack;
-use crate::math::Vec3A;
+use crate::math::{Ray, Vec3A};
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
-
-/// A ray of a batch: the segment from `origin` along the unit `direction` up to `t_max`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ray {
-    /// Where the ray starts.
-    pub origin: Vec3A,
-    /// Unit direction.
-    pub direction: Vec3A,
-    /// Farthest distance a hit may have.
-    pub t_max: f32,
-}
 
 /// Scenes whose tree and leaf records take more than this are cast in Morton order; smaller
 /// ones stay in a core's cache (1-2 MiB of L2 on current CPUs) whatever the order, and the

@@ -6,7 +6,7 @@ use super::instances::InstanceRequest;
 use super::lights::validate_emitter;
 use super::materials::{self, MaterialTable};
 use super::{Group, Primitives, Source};
-use crate::alpha::{self, AlphaRecord};
+use crate::accel::alpha::{self, AlphaRecord};
 use crate::error::{Error, Result};
 use crate::geometry::TriangleGeom;
 use crate::math::{Affine3A, Mat3A, Rgb, Vec2, Vec3, Vec3A, Vec4};

@@ -17,22 +17,22 @@ mod spheres;
 pub use instances::{INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing};
 
 use crate::accel::ClosestHitPath;
+use crate::accel::alpha::AlphaRecord;
 use crate::accel::build::{self as bvh, Bvh4};
 use crate::accel::leaf_prims::LeafPrim;
 use crate::accel::occluders;
-use crate::alpha::AlphaRecord;
 use crate::error::{Error, Result};
 use crate::geometry::Shape;
 use crate::geometry::sphere::SphereGeom;
 use crate::math::{Rgb, Vec2, Vec3, Vec4};
-use crate::render_scene::{NO_EMITTER, RenderScene};
+use crate::render_scene::{FlattenTimes, NO_EMITTER, RenderScene};
 use crate::scene::{Emitter, MaterialTextures, Mesh, SharedMesh, VertexColors, mesh_of};
 use crate::texture::TextureRef;
 use materials::MaterialTable;
 use meshes::MeshPrims;
 use rayon::prelude::*;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
 /// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds
@@ -227,17 +227,6 @@ pub fn flatten_with(
     })
 }
 
-/// How long [`flatten`] took (wall time).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct FlattenTimes {
-    /// The BVH build alone: obvhs's binary tree over the primitives' boxes and its collapse
-    /// into 4-wide nodes (what a ray-tracing library's build does).
-    pub bvh_build: Duration,
-    /// All of it: the meshes' world-space triangles, the BVH, and every per-primitive column
-    /// in slot order.
-    pub total: Duration,
-}
-
 /// The primitives of one entity (a mesh's triangles or a sphere), which share its material
 /// and emitter.
 struct Group {
@@ -248,7 +237,7 @@ struct Group {
     emitter: Option<Emitter>,
     /// The emitter's texture and the texture's mean.
     emission_texture: Option<(TextureRef, Rgb)>,
-    /// Index into [`Primitives::alpha_records`], or [`crate::alpha::OPAQUE`].
+    /// Index into [`Primitives::alpha_records`], or [`crate::accel::alpha::OPAQUE`].
     alpha: u32,
 }
 
@@ -418,7 +407,7 @@ fn build_tree_of(
 }
 
 /// Per slot (BVH order `order`), the material index, the light index (or [`NO_EMITTER`])
-/// and, if `alpha_tested`, the alpha record (or [`crate::alpha::OPAQUE`]) of its primitive.
+/// and, if `alpha_tested`, the alpha record (or [`crate::accel::alpha::OPAQUE`]) of its primitive.
 fn slot_materials_lights_and_alpha(
     groups: &[Group],
     first_light: &[u32],

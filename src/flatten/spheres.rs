@@ -62,7 +62,7 @@ pub(super) fn flatten_spheres(
             material,
             emitter,
             emission_texture: None,
-            alpha: crate::alpha::OPAQUE,
+            alpha: crate::accel::alpha::OPAQUE,
         });
         prims.sources.push(Source::Sphere(geom));
         prims.count += 1;

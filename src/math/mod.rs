@@ -1,5 +1,6 @@
-//! Small math vocabulary shared by every stage: vector types, colours, orthonormal frames,
-//! warping functions and the counter-based random numbers. Nothing here knows about scenes.
+//! Small math vocabulary shared by every stage: vector types, colours, rays, orthonormal
+//! frames, warping functions and the counter-based random numbers. Nothing here knows about
+//! scenes.
 
 pub mod frame;
 pub mod rng;
@@ -7,6 +8,18 @@ pub mod sampling;
 pub mod sobol;
 
 pub use glam::{Affine3A, BVec4A, Mat3, Mat3A, Mat4, Quat, Vec2, Vec3, Vec3A, Vec4};
+
+/// A ray as ray-casting clients give it (`RenderScene::closest_hits`): the segment from
+/// `origin` along the unit `direction` up to `t_max`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Where the ray starts.
+    pub origin: Vec3A,
+    /// Unit direction.
+    pub direction: Vec3A,
+    /// Farthest distance a hit may have.
+    pub t_max: f32,
+}
 
 /// The 4 x 4 block `rows` transposed: lane `k` of vector `i` becomes lane `i` of vector `k`.
 /// Turns one vector per item into one vector per coordinate (four items in SIMD lanes), and

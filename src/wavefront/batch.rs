@@ -5,6 +5,7 @@
 use crate::film::FilmRegion;
 use crate::lights::LightUniforms;
 use crate::math::{Rgb, Vec2, Vec3A};
+use std::ops::Range;
 
 /// Rays to intersect, one per live path.
 #[derive(Clone, Default)]
@@ -73,14 +74,9 @@ pub struct PathState {
     /// Absorption coefficient of the medium the path travels in (`KHR_materials_volume`):
     /// set when it refracts into an absorbing object, zero outside.
     pub medium: Vec<Rgb>,
-    /// For a path whose last non-delta vertex `x1` (all bounces since delta ones) could be a
-    /// light path's diffuse point: the part of the light-tracing MIS ratio that the vertex
-    /// before `x1` gives, the camera's or a connecting vertex's, with its strategy's count
-    /// ([`super::light_paths::camera_vertex_factor`], [`super::light_vertices`]); negative
-    /// from `x1`'s sample until a delta bounce follows (emission found straight after `x1`,
-    /// which counts in full without shadow rays, is no caustic); 0 for every other path (and
-    /// when no light paths are traced).
-    pub caustic_factor: Vec<f32>,
+    /// Where the path stands toward the caustics the pass's light paths also find (always
+    /// [`CausticState::None`] when no light paths are traced).
+    pub caustic: Vec<CausticState>,
 }
 
 impl PathState {
@@ -105,16 +101,47 @@ impl PathState {
         self.alive.resize(n, false);
         self.radiance_scale.resize(n, 1.0);
         self.medium.resize(n, Rgb::ZERO);
-        self.caustic_factor.resize(n, 0.0);
+        self.caustic.resize(n, CausticState::None);
+    }
+}
+
+/// A path's standing toward the caustic paths (`camera or non-delta vertex -> x1 (non-delta)
+/// -> delta+ -> light`) that the light paths find too ([`super::light_paths`],
+/// [`super::light_vertices`]), with the factor the two strategies' MIS weights need
+/// ([`super::mis::camera_vertex_factor`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum CausticState {
+    /// Emission the path finds is no such caustic (or no light paths are traced).
+    #[default]
+    None,
+    /// The last vertex `x1` was non-delta and could be a light path's diffuse point.
+    /// `factor` is the part of the light tracer's MIS ratio that the vertex before `x1`
+    /// gives (the camera's or a connecting vertex's), with its strategy's count. Emission
+    /// found straight after `x1` is no caustic (next-event estimation covers it), so the
+    /// factor waits for a delta bounce.
+    Pending { factor: f32 },
+    /// One or more delta bounces since such an `x1`: emission found now ends a caustic path,
+    /// weighted against the light paths with `factor`.
+    Caustic { factor: f32 },
+}
+
+impl CausticState {
+    /// The state after a delta bounce: a pending factor starts to count; the rest stays.
+    #[inline]
+    pub fn after_delta_bounce(self) -> Self {
+        match self {
+            CausticState::Pending { factor } => CausticState::Caustic { factor },
+            other => other,
+        }
     }
 }
 
 /// Shadow rays: room for a fixed number of entries per live path (`per_path`), so that each
 /// path owns a contiguous chunk and the shadow stage can accumulate without synchronisation.
-/// A path's rays are packed at the front of its chunk (`count` of them) and share their
-/// origin, which lets the shadow stage trace them as packets straight from the buffers. At a
-/// surface that transmits, the rays toward lights behind it leave from a second origin on the
-/// back side: they are packed at the end of the chunk (`back_count` of them, last first).
+/// The chunk's layout has one owner, [`ShadowSlots`] (written by shading) with
+/// [`ShadowBatch::front_entries`] and [`ShadowBatch::back_entries`] (read by the shadow
+/// stage): the rays of one side of the surface share their origin, which lets the shadow
+/// stage trace them as packets straight from the buffers.
 #[derive(Default)]
 pub struct ShadowBatch {
     /// Entries per path (at least 1).
@@ -158,6 +185,159 @@ impl ShadowBatch {
             self.contribution.resize(n, Rgb::ZERO);
         }
     }
+
+    /// Entries of path `i`'s rays from the front origin.
+    #[inline(always)]
+    pub fn front_entries(&self, i: usize) -> Range<usize> {
+        let start = i * self.per_path;
+        start..start + self.count[i] as usize
+    }
+
+    /// Entries of path `i`'s rays from the back origin.
+    #[inline(always)]
+    pub fn back_entries(&self, i: usize) -> Range<usize> {
+        let end = (i + 1) * self.per_path;
+        end - self.back_count[i] as usize..end
+    }
+
+    /// The light-sample lattice and path `i`'s chunk, to write its shadow rays into.
+    #[inline(always)]
+    pub fn lattice_and_slots(&mut self, i: usize) -> (&[LightUniforms], ShadowSlots<'_>) {
+        let chunk = i * self.per_path..(i + 1) * self.per_path;
+        let slots = ShadowSlots {
+            count: &mut self.count[i],
+            origin: &mut self.origin[i],
+            back_count: &mut self.back_count[i],
+            back_origin: &mut self.back_origin[i],
+            direction: &mut self.direction[chunk.clone()],
+            t_max: &mut self.t_max[chunk.clone()],
+            contribution: &mut self.contribution[chunk],
+        };
+        (&self.lattice, slots)
+    }
+}
+
+/// One path's chunk of the [`ShadowBatch`]. The rays from the front origin (the side the
+/// path arrived on) are packed from the chunk's start; at a surface that transmits, the rays
+/// toward lights behind it leave from a second origin on the back side and are packed from
+/// the chunk's end, last first. Neither side needs to know how many rays the other takes.
+pub struct ShadowSlots<'a> {
+    count: &'a mut u32,
+    origin: &'a mut Vec3A,
+    back_count: &'a mut u32,
+    back_origin: &'a mut Vec3A,
+    direction: &'a mut [Vec3A],
+    t_max: &'a mut [f32],
+    contribution: &'a mut [Rgb],
+}
+
+impl ShadowSlots<'_> {
+    /// The same chunk, borrowed again.
+    #[inline(always)]
+    pub fn reborrow(&mut self) -> ShadowSlots<'_> {
+        ShadowSlots {
+            count: self.count,
+            origin: self.origin,
+            back_count: self.back_count,
+            back_origin: self.back_origin,
+            direction: self.direction,
+            t_max: self.t_max,
+            contribution: self.contribution,
+        }
+    }
+
+    /// Entries in the chunk (front and back rays together).
+    #[inline(always)]
+    pub fn capacity(&self) -> usize {
+        self.direction.len()
+    }
+
+    /// Empties the chunk (both sides).
+    #[inline(always)]
+    pub fn clear(&mut self) {
+        *self.count = 0;
+        *self.back_count = 0;
+    }
+
+    /// Sets the shared origin of the front rays.
+    #[inline(always)]
+    pub fn set_front_origin(&mut self, origin: Vec3A) {
+        *self.origin = origin;
+    }
+
+    /// Sets the shared origin of the back rays.
+    #[inline(always)]
+    pub fn set_back_origin(&mut self, origin: Vec3A) {
+        *self.back_origin = origin;
+    }
+
+    /// The entry of front ray `k` (counted from 0).
+    #[inline(always)]
+    pub fn front_entry(k: usize) -> usize {
+        k
+    }
+
+    /// The entry of back ray `k` (counted from 0).
+    #[inline(always)]
+    pub fn back_entry(&self, k: usize) -> usize {
+        self.direction.len() - 1 - k
+    }
+
+    /// Writes a ray into `entry` (from [`Self::front_entry`] or [`Self::back_entry`]); it
+    /// counts once [`Self::set_counts`] covers it.
+    #[inline(always)]
+    pub fn write(&mut self, entry: usize, direction: Vec3A, t_max: f32, contribution: Rgb) {
+        self.direction[entry] = direction;
+        self.t_max[entry] = t_max;
+        self.contribution[entry] = contribution;
+    }
+
+    /// Sets how many front and back rays the chunk holds.
+    #[inline(always)]
+    pub fn set_counts(&mut self, front: usize, back: usize) {
+        *self.count = front as u32;
+        *self.back_count = back as u32;
+    }
+
+    /// Adds a front ray after those already there; returns its entry.
+    #[inline(always)]
+    pub fn push_front(&mut self, direction: Vec3A, t_max: f32, contribution: Rgb) -> usize {
+        let entry = Self::front_entry(*self.count as usize);
+        self.write(entry, direction, t_max, contribution);
+        *self.count += 1;
+        entry
+    }
+
+    /// Adds a back ray after those already there; returns its entry.
+    #[inline(always)]
+    pub fn push_back(&mut self, direction: Vec3A, t_max: f32, contribution: Rgb) -> usize {
+        let entry = self.back_entry(*self.back_count as usize);
+        self.write(entry, direction, t_max, contribution);
+        *self.back_count += 1;
+        entry
+    }
+
+    /// The entries of the front rays, then of the back rays (each side in entry order).
+    #[inline(always)]
+    pub fn entries(&self) -> (Range<usize>, Range<usize>) {
+        let len = self.direction.len();
+        (
+            0..*self.count as usize,
+            len - *self.back_count as usize..len,
+        )
+    }
+
+    /// The distance up to which the ray in `entry` looks for occluders.
+    #[inline(always)]
+    pub fn t_max(&self, entry: usize) -> f32 {
+        self.t_max[entry]
+    }
+
+    /// Multiplies the contribution of the ray in `entry` by `factor`.
+    #[inline(always)]
+    pub fn scale_contribution(&mut self, entry: usize, factor: Rgb) {
+        self.contribution[entry] *= factor;
+    }
 }
 
 /// Stable, order-preserving compaction after a bounce: paths still alive move to the front
@@ -191,7 +371,7 @@ pub fn compact_paths(
         paths.bsdf_pdf[kept] = paths.bsdf_pdf[i];
         paths.radiance_scale[kept] = paths.radiance_scale[i];
         paths.medium[kept] = paths.medium[i];
-        paths.caustic_factor[kept] = paths.caustic_factor[i];
+        paths.caustic[kept] = paths.caustic[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

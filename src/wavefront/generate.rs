@@ -1,6 +1,6 @@
 //! Stage 1, generate: camera rays for a range of pixels and one sample index.
 
-use super::batch::{PathState, RayBatch};
+use super::batch::{CausticState, PathState, RayBatch};
 use crate::camera::PinholeCamera;
 use crate::math::Rgb;
 use crate::math::rng::{Sampler, dim};
@@ -33,7 +33,7 @@ pub fn generate_camera_rays(
         paths.count_emission[i] = true;
         paths.radiance_scale[i] = 1.0;
         paths.medium[i] = Rgb::ZERO; // cameras are outside every object
-        paths.caustic_factor[i] = 0.0;
+        paths.caustic[i] = CausticState::None;
         let (origin, direction) =
             camera.generate_ray(pixel, sampler.uniform2(key, 0, dim::PIXEL_JITTER));
         // flatten refused non-finite cameras, so every camera ray is valid

@@ -1,9 +1,8 @@
 //! Stage 2, intersect: the closest hit of every ray of the batch.
 
 use super::batch::{HitBatch, NO_HIT, RayBatch};
-use crate::alpha::RayKey;
 use crate::math::Vec2;
-use crate::render_scene::{RenderScene, TraversalStack};
+use crate::render_scene::{RayKey, RenderScene, TraversalStack};
 
 /// Finds the closest hit of each ray (ray `i` of the path of random-number key
 /// `path_keys[i]`, at `bounce`: they choose BLEND coverage); misses get [`NO_HIT`].

@@ -31,9 +31,9 @@
 //!
 //! both densities taken in the measure of the path tracer's variables (`x1` by area, `w1` by
 //! solid angle; through a delta chain `dA(x1) dw(w1) cos_x1 = dA(y0) dw(w0) cos_y0` in one
-//! medium). The two sides compute `r` with the same functions ([`camera_vertex_factor`],
-//! [`mis_ratio`]) from the same quantities, so the weights sum to one for every path, and the
-//! sum stays unbiased even where the ratio leaves out factors (the Fresnel choices, alike both
+//! medium). The two sides compute `r` with the same functions ([`super::mis`]) from the same
+//! quantities, so the weights sum to one for every path, and the sum stays unbiased even
+//! where the ratio leaves out factors (the Fresnel choices, alike both
 //! ways; the `n^2` of a light inside glass). Punctual lights, which no ray can hit, take
 //! weight 1: their caustics come only from here. Directional and environment lights would
 //! need emission from a disk over the scene and are left to the path tracer.
@@ -51,9 +51,9 @@
 //! of paths run in parallel and their splats are added in path order.
 
 use super::light_vertices::{self, LightVertex};
-use super::shade::{material_absorption, transmittance};
+use super::medium::{material_absorption, transmittance};
+use super::mis::{camera_vertex_factor, emission_density_over_cos, light_tracer_weight, mis_ratio};
 use super::surface;
-use crate::alpha::RayKey;
 use crate::bsdf::Bsdf;
 use crate::camera::PinholeCamera;
 use crate::geometry::sphere::SphereGeom;
@@ -63,26 +63,10 @@ use crate::math::frame::Frame;
 use crate::math::rng::{dim, path_key, uniform, uniform2, uniform3};
 use crate::math::sampling::{sample_cosine_hemisphere, sample_discrete, sample_triangle};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4, offset_ray_origin};
-use crate::render_scene::{RenderScene, TraversalStack};
+use crate::render_scene::{RayKey, RenderScene, TraversalStack};
 use crate::settings::RenderSettings;
 use rayon::prelude::*;
 use std::f32::consts::{FRAC_1_PI, PI};
-
-/// What the path tracer needs to weight the caustic paths it finds against the light paths
-/// of the pass, and the light vertices its vertices connect to.
-#[derive(Clone, Copy, Debug)]
-pub struct CausticWeights<'a> {
-    /// Light paths traced in the pass: the `n` of the balance heuristic, and the range of a
-    /// camera vertex's pick among them.
-    pub light_path_count: u64,
-    /// The camera, for the density of its rays.
-    pub camera: PinholeCamera,
-    /// Whether camera vertices connect to the light vertices (caustics seen after a diffuse
-    /// bounce, [`super::light_vertices`]).
-    pub connections: bool,
-    /// The pass's light vertices, in path order (empty without connections).
-    pub light_vertices: &'a [LightVertex],
-}
 
 /// Whether the render traces light paths for caustics: they are asked for, multiple
 /// importance sampling is on (without it, `--no-mis`, the renderer is the seed's estimator),
@@ -109,57 +93,6 @@ pub fn caustics_traced(scene: &RenderScene, settings: &RenderSettings) -> bool {
 /// Light paths in a pass in which `active_pixels` pixels take a sample.
 pub fn light_path_count(settings: &RenderSettings, active_pixels: u64) -> u64 {
     (settings.caustic_paths as f64 * active_pixels as f64).round() as u64
-}
-
-/// The camera vertex's part of the MIS ratio: `cos_x1 / (p_bsdf(w1) * p_camera_area(x1))`,
-/// with `cos_x1 = |ng . w1|` toward the light side, `bsdf_pdf` the solid-angle density of
-/// `w1` given the direction to the camera, `to_camera_cos = |ng . wo|`, `distance` from the
-/// eye and `direction_density` the camera's density of its ray direction. For a connection
-/// after a diffuse bounce the "camera" is the previous vertex `x2`, and `direction_density`
-/// its BSDF's density of the direction to `x1`.
-#[inline]
-pub fn camera_vertex_factor(
-    cos_x1: f32,
-    bsdf_pdf: f32,
-    to_camera_cos: f32,
-    distance: f32,
-    direction_density: f32,
-) -> f32 {
-    let camera_area_density = direction_density * to_camera_cos / (distance * distance);
-    let factor = cos_x1 / (bsdf_pdf * camera_area_density);
-    if factor.is_finite() { factor } else { 0.0 }
-}
-
-/// The emission density over the cosine at the light, `p_emit(w0) / cos_y0`, of an area light.
-#[inline]
-fn emission_density_over_cos(light: &AreaLight) -> f32 {
-    if light.two_sided {
-        0.5 * FRAC_1_PI
-    } else {
-        FRAC_1_PI
-    }
-}
-
-/// `r = n p_LT / p_PT` for a path that left area light `light` and met the camera vertex of
-/// factor `camera_factor`: `n` (the light paths of the pass for the direct connection to the
-/// camera, 1 for a connection after a diffuse bounce) times [`camera_vertex_factor`].
-#[inline]
-pub fn mis_ratio(light: &AreaLight, camera_factor: f32) -> f32 {
-    light.pdf_area * emission_density_over_cos(light) * camera_factor
-}
-
-/// The path tracer's weight for emission from `light` found through a delta chain after the
-/// camera vertex of factor `camera_factor` (as for [`mis_ratio`]).
-#[inline]
-pub fn path_tracer_weight(light: &AreaLight, camera_factor: f32) -> f32 {
-    1.0 / (1.0 + mis_ratio(light, camera_factor))
-}
-
-/// The light tracer's weight, the complement of [`path_tracer_weight`] (1 for an infinite
-/// ratio: a direction the path tracer cannot sample).
-#[inline]
-pub(super) fn light_tracer_weight(ratio: f32) -> f32 {
-    1.0 / (1.0 + 1.0 / ratio)
 }
 
 /// Salt of the light paths' keys, apart from the camera paths'.
@@ -559,37 +492,12 @@ fn emit_punctual(light: &DeltaLight, u: Vec2) -> Option<Emission<'static>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Vec3A;
-
-    #[test]
-    fn the_two_weights_sum_to_one() {
-        let light = AreaLight {
-            pdf_area: 0.37,
-            ..AreaLight::new(
-                Shape::Triangle(crate::geometry::triangle::TriangleGeom::new(
-                    Vec3A::ZERO,
-                    Vec3A::X,
-                    Vec3A::Y,
-                )),
-                Rgb::ONE,
-                false,
-            )
-        };
-        for light_paths in [1.0, 300.0, 65536.0] {
-            for factor in [1e-6, 0.01, 1.0, 37.0, 1e6] {
-                let factor = light_paths * factor;
-                let path_tracer = path_tracer_weight(&light, factor);
-                let light_tracer = light_tracer_weight(mis_ratio(&light, factor));
-                assert!((path_tracer + light_tracer - 1.0).abs() < 1e-6);
-            }
-        }
-    }
 
     /// Scenes without a mirror or smooth glass trace no light paths, and their images do not
     /// change at all.
     #[test]
     fn scenes_without_delta_surfaces_render_as_before() {
-        let mut scene = crate::wavefront::next_event::tests::room();
+        let mut scene = crate::wavefront::tests::room();
         let settings = RenderSettings {
             width: 24,
             height: 20,

@@ -27,11 +27,11 @@
 //!
 //! MIS, balance heuristic, against the path tracer's BSDF-sampled path
 //! `x2 -> x1 -> delta+ -> light`: `r = p_LT / p_PT` is the direct case's ratio
-//! ([`light_paths::mis_ratio`]) with the camera's density of `x1` replaced by the density with
+//! ([`super::mis::mis_ratio`]) with the camera's density of `x1` replaced by the density with
 //! which `x2`'s BSDF sampling reaches `x1` per area, `p_bsdf(x2 -> x1) |ng1 . w| / d^2`
-//! ([`light_paths::camera_vertex_factor`] with that solid-angle density), and the light path
+//! ([`super::mis::camera_vertex_factor`] with that solid-angle density), and the light path
 //! count by the connections per camera vertex, 1. The path tracer keeps the same factor in
-//! `caustic_factor` from `x1` through the delta bounces (the shade stage); both sides compute
+//! its [`super::batch::CausticState`] from `x1` through the delta bounces (the shade stage); both sides compute
 //! `r` with the same functions from the same quantities, so the weights sum to one for every
 //! path. Where `x1` was reached from a delta vertex there is no connection (weight 1 for the
 //! path tracer, as before). Paths longer than the path tracer's depth cap are not connected
@@ -49,7 +49,7 @@
 //! (the path's, or the object's through a transmitting surface), as the path tracer's ray
 //! would.
 
-use super::light_paths::{self, CausticWeights};
+use super::mis::{camera_vertex_factor, light_tracer_weight, mis_ratio};
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::math::Rgb;
@@ -102,19 +102,18 @@ pub(super) struct Connection {
     pub(super) contribution: Rgb,
 }
 
-/// The connection of camera vertex `at` to the light vertex of light path `pick` (an index
-/// in `0..light_paths`; past the kept vertices, none), if it can add anything. `max_depth` is
-/// the path tracer's cap.
+/// The connection of camera vertex `at` to the light vertex of light path `pick` among the
+/// pass's `light_vertices` (an index in `0..light_paths`; past the kept vertices, none), if
+/// it can add anything. `max_depth` is the path tracer's cap.
 #[inline(never)]
 pub(super) fn connect(
     scene: &RenderScene,
-    caustics: &CausticWeights,
+    light_vertices: &[LightVertex],
     pick: usize,
     at: &CameraVertex,
     max_depth: u32,
 ) -> Option<Connection> {
-    let vertices = caustics.light_vertices;
-    let vertex = vertices.get(pick)?;
+    let vertex = light_vertices.get(pick)?;
     // The path tracer reaches the light at bounce `bounce + 2 + delta bounces`; it traces
     // bounces below `max_depth` only.
     if at.bounce + 2 + vertex.delta_bounces >= max_depth {
@@ -158,7 +157,7 @@ pub(super) fn connect(
     let weight = match scene.lights.lights.get(vertex.light as usize) {
         None => 1.0, // a punctual light: no other strategy finds these paths
         Some(light) => {
-            let factor = light_paths::camera_vertex_factor(
+            let factor = camera_vertex_factor(
                 cos_to_light,
                 bsdf1.pdf(wo1_local, wi1_local),
                 cos_to_x2,
@@ -168,7 +167,7 @@ pub(super) fn connect(
             if factor == 0.0 {
                 return None; // a degenerate point: the path tracer's weight is 1 there
             }
-            light_paths::light_tracer_weight(light_paths::mis_ratio(light, factor))
+            light_tracer_weight(mis_ratio(light, factor))
         }
     };
     let contribution = at.throughput

@@ -16,10 +16,14 @@
 pub mod batch;
 pub mod generate;
 pub mod intersect;
-pub mod light_paths;
+mod light_paths;
 mod light_vertices;
+mod medium;
+mod mis;
 mod next_event;
+pub mod params;
 pub mod shade;
+mod shade_kernel;
 pub mod shadow;
 pub mod stats;
 mod surface;
@@ -31,10 +35,9 @@ use crate::math::Rgb;
 use crate::render_scene::RenderScene;
 use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
-use light_paths::CausticWeights;
 use light_vertices::LightVertex;
+use params::{CausticWeights, ShadeParams};
 use rayon::prelude::*;
-use shade::ShadeParams;
 use stats::RenderStats;
 use std::ops::{Deref, DerefMut};
 use std::sync::Mutex;
@@ -454,8 +457,16 @@ fn timed<T>(total: &mut Duration, f: impl FnOnce() -> T) -> T {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The room of `scenes/room.toml` (one area light, walls on every side, a mirror and a
+    /// glass sphere), for the stages' tests.
+    pub(crate) fn room() -> RenderScene {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
+        let scene = crate::scene::load::load_scene(&path).expect("the room loads");
+        crate::flatten::flatten(&scene.world, &path).expect("the room flattens")
+    }
 
     #[test]
     fn many_shadow_rays_shrink_the_batch_to_the_memory_budget() {

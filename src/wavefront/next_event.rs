@@ -6,7 +6,10 @@
 //! The light samples of a hit's shadow rays are the points of one rank-1 lattice, shifted per
 //! path, four lanes to a group, and shaded four lanes at a time.
 
-use super::shade::{ShadeParams, transmittance};
+use super::batch::ShadowSlots;
+use super::medium::transmittance;
+use super::mis::power_heuristic;
+use super::params::ShadeParams;
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::lights::{LIGHT_LANES, LightSamples, LightUniforms};
@@ -26,7 +29,7 @@ pub(super) const SHADOW_RAY_SHORTENING: f32 = 1e-4;
 pub(super) struct NextEvent<'a> {
     pub(super) lattice: &'a [LightUniforms],
     pub(super) samples: &'a mut [LightSamples; GROUPS_PER_PASS],
-    pub(super) shadow: ShadowView<'a>,
+    pub(super) shadow: ShadowSlots<'a>,
 }
 
 impl NextEvent<'_> {
@@ -34,32 +37,12 @@ impl NextEvent<'_> {
     /// next-event estimation has written its own).
     #[inline(always)]
     pub(super) fn reborrow(&mut self) -> NextEvent<'_> {
-        let shadow = &mut self.shadow;
         NextEvent {
             lattice: self.lattice,
             samples: self.samples,
-            shadow: ShadowView {
-                count: shadow.count,
-                origin: shadow.origin,
-                back_count: shadow.back_count,
-                back_origin: shadow.back_origin,
-                direction: shadow.direction,
-                t_max: shadow.t_max,
-                contribution: shadow.contribution,
-            },
+            shadow: self.shadow.reborrow(),
         }
     }
-}
-
-/// One path's chunk of the shadow batch.
-pub(super) struct ShadowView<'a> {
-    pub(super) count: &'a mut u32,
-    pub(super) origin: &'a mut Vec3A,
-    pub(super) back_count: &'a mut u32,
-    pub(super) back_origin: &'a mut Vec3A,
-    pub(super) direction: &'a mut [Vec3A],
-    pub(super) t_max: &'a mut [f32],
-    pub(super) contribution: &'a mut [Rgb],
 }
 
 /// The shading point as next-event estimation needs it.
@@ -163,7 +146,7 @@ fn sample_lights<const THROUGH: bool>(
     let NextEvent {
         lattice,
         samples,
-        shadow,
+        mut shadow,
     } = next_event;
     let ShadingPoint {
         p,
@@ -183,10 +166,10 @@ fn sample_lights<const THROUGH: bool>(
     // lost behind rough glass); elsewhere lights behind are skipped below.
     let front_normal = if front { ng } else { -ng };
     let origin = offset_ray_origin(p, p_error, ng, front_normal);
-    *shadow.origin = origin;
+    shadow.set_front_origin(origin);
     let transmits = THROUGH && bsdf.transmits();
     if transmits {
-        *shadow.back_origin = offset_ray_origin(p, p_error, ng, -front_normal);
+        shadow.set_back_origin(offset_ray_origin(p, p_error, ng, -front_normal));
     }
     let mut back_count = 0;
     // Behind every light (a ceiling above a ceiling light) all samples would be zero.
@@ -259,20 +242,18 @@ fn sample_lights<const THROUGH: bool>(
                 let behind = dot(side).cmplt(Vec4::ZERO) & samples.scale.cmpgt(Vec4::ZERO);
                 let keep_front = (usable & lit & !crosses).bitmask() & lane_mask;
                 let keep_back = (behind & lit & crosses).bitmask() & lane_mask;
-                let last = shadow.direction.len() - 1;
                 for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
                     let entry = if keep_front >> k & 1 == 1 {
                         count += 1;
-                        count - 1
+                        ShadowSlots::front_entry(count - 1)
                     } else if keep_back >> k & 1 == 1 {
                         back_count += 1;
-                        last + 1 - back_count
+                        shadow.back_entry(back_count - 1)
                     } else {
                         continue;
                     };
-                    shadow.direction[entry] = Vec3A::from_vec4(ray);
-                    shadow.t_max[entry] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
-                    shadow.contribution[entry] = colour.truncate();
+                    let t_max = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
+                    shadow.write(entry, Vec3A::from_vec4(ray), t_max, colour.truncate());
                 }
                 continue;
             }
@@ -280,86 +261,36 @@ fn sample_lights<const THROUGH: bool>(
             // every lane is stored at the next free entry, which only a kept lane takes.
             let keep = (usable & lit).bitmask() & lane_mask;
             for (k, (ray, colour)) in rays.into_iter().zip(colours).take(lanes).enumerate() {
-                shadow.direction[count] = Vec3A::from_vec4(ray);
-                shadow.t_max[count] = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
-                shadow.contribution[count] = colour.truncate();
+                let entry = ShadowSlots::front_entry(count);
+                let t_max = ray.w * (1.0 - SHADOW_RAY_SHORTENING);
+                shadow.write(entry, Vec3A::from_vec4(ray), t_max, colour.truncate());
                 count += (keep >> k & 1) as usize;
             }
         }
     }
-    *shadow.count = count as u32;
-    *shadow.back_count = back_count as u32;
+    shadow.set_counts(count, back_count);
     // Absorption in media, after the loop so that surfaces outside media do no work in it.
     // Over the shortened length: 1e-4 of the distance changes the transmittance by nothing
     // measurable.
     if absorbs {
-        let back = shadow.direction.len() - back_count;
-        for (entry, medium) in (0..count)
+        let (front_entries, back_entries) = shadow.entries();
+        for (entry, medium) in front_entries
             .map(|e| (e, media.front))
-            .chain((back..shadow.direction.len()).map(|e| (e, media.back)))
+            .chain(back_entries.map(|e| (e, media.back)))
         {
-            shadow.contribution[entry] *= transmittance(medium, shadow.t_max[entry]);
+            let kept = transmittance(medium, shadow.t_max(entry));
+            shadow.scale_contribution(entry, kept);
         }
     }
 }
 
-/// The MIS weight of emission that a BSDF-sampled ray (solid-angle density `bsdf_pdf` at the
-/// previous vertex) found at `distance`, where the surface's cosine toward that vertex is
-/// `cos_light`, against the `shadow_rays` shadow rays that could have chosen the same point
-/// (area density `light_pdf_area`).
-#[inline(always)]
-pub(super) fn emission_weight(
-    bsdf_pdf: f32,
-    shadow_rays: u32,
-    light_pdf_area: f32,
-    distance: f32,
-    cos_light: f32,
-) -> f32 {
-    // The density with which the shadow rays would have chosen this point, per solid angle
-    // at the previous vertex.
-    let light_pdf_sa = light_pdf_area * distance * distance / cos_light;
-    power_heuristic(
-        Vec4::splat(bsdf_pdf),
-        Vec4::splat(shadow_rays as f32 * light_pdf_sa),
-    )
-    .x
-}
-
-/// The MIS weight of the environment's radiance that a BSDF-sampled ray (solid-angle
-/// density `bsdf_pdf`) found on leaving the scene, against the `shadow_rays` shadow rays
-/// that could have chosen its direction (solid-angle density `light_pdf`, choice included).
-#[inline]
-pub(super) fn environment_weight(bsdf_pdf: f32, shadow_rays: u32, light_pdf: f32) -> f32 {
-    power_heuristic(
-        Vec4::splat(bsdf_pdf),
-        Vec4::splat(shadow_rays as f32 * light_pdf),
-    )
-    .x
-}
-
-/// Veach's power heuristic (beta = 2), lane by lane, for a sample from the strategy of
-/// density `pdf` against one of density `other_pdf`, each already multiplied by its sample
-/// count.
-#[inline(always)]
-fn power_heuristic(pdf: Vec4, other_pdf: Vec4) -> Vec4 {
-    let (a, b) = (pdf * pdf, other_pdf * other_pdf);
-    let weight = Vec4::select((a + b).cmpgt(Vec4::ZERO), a / (a + b), Vec4::ZERO);
-    Vec4::select(a.cmpeq(Vec4::INFINITY), Vec4::ONE, weight)
-}
-
 #[cfg(test)]
-pub(super) mod tests {
+mod tests {
     use super::*;
     use crate::bsdf::{Layered, MetallicRoughness};
     use crate::math::rng::{Sampler, path_key, uniform};
     use crate::render_scene::RenderScene;
-
-    /// The seed room (one area light, walls on every side).
-    pub(in crate::wavefront) fn room() -> RenderScene {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/room.toml");
-        let scene = crate::scene::load::load_scene(&path).expect("the room loads");
-        crate::flatten::flatten(&scene.world, &path).expect("the room flattens")
-    }
+    use crate::wavefront::batch::ShadowBatch;
 
     /// The shadow rays one estimator writes: the count, the origin, the back side's count,
     /// and the kept entries.
@@ -372,27 +303,18 @@ pub(super) mod tests {
         key: u64,
         at: &ShadingPoint,
     ) -> Written {
-        let rays = params.shadow_rays as usize;
-        let (mut count, mut back_count) = (0, 0);
-        let (mut origin, mut back_origin) = (Vec3A::ZERO, Vec3A::ZERO);
-        let mut direction = vec![Vec3A::ZERO; rays];
-        let mut t_max = vec![0.0; rays];
-        let mut contribution = vec![Rgb::ZERO; rays];
-        let mut lattice = Vec::new();
-        shadow_ray_lattice(params.shadow_rays, &mut lattice);
+        let mut shadows = ShadowBatch {
+            per_path: params.shadow_rays as usize,
+            ..Default::default()
+        };
+        shadows.grow_to(1);
+        shadow_ray_lattice(params.shadow_rays, &mut shadows.lattice);
         let mut samples = [LightSamples::default(); GROUPS_PER_PASS];
+        let (lattice, shadow) = shadows.lattice_and_slots(0);
         let next_event = NextEvent {
-            lattice: &lattice,
+            lattice,
             samples: &mut samples,
-            shadow: ShadowView {
-                count: &mut count,
-                origin: &mut origin,
-                back_count: &mut back_count,
-                back_origin: &mut back_origin,
-                direction: &mut direction,
-                t_max: &mut t_max,
-                contribution: &mut contribution,
-            },
+            shadow,
         };
         let throughput = Rgb::new(0.9, 0.7, 0.5);
         if through {
@@ -400,10 +322,22 @@ pub(super) mod tests {
         } else {
             sample_lights_front(scene, params, key, at, throughput, next_event);
         }
-        let entries = (0..count as usize)
-            .map(|e| (direction[e], t_max[e], contribution[e]))
+        let entries = shadows
+            .front_entries(0)
+            .map(|e| {
+                (
+                    shadows.direction[e],
+                    shadows.t_max[e],
+                    shadows.contribution[e],
+                )
+            })
             .collect();
-        (count, origin, back_count, entries)
+        (
+            shadows.count[0],
+            shadows.origin[0],
+            shadows.back_count[0],
+            entries,
+        )
     }
 
     /// On surfaces that cannot transmit, outside media, the front-side estimator (the fast
@@ -413,7 +347,7 @@ pub(super) mod tests {
     /// shadow-ray counts that fill the last group of four or not, with and without MIS.
     #[test]
     fn the_front_side_estimator_is_the_general_one_on_opaque_surfaces() {
-        let scene = room();
+        let scene = crate::wavefront::tests::room();
         let base = MetallicRoughness::new(Rgb::new(0.9, 0.6, 0.3), 0.0, 0.4);
         let bsdfs = [
             Bsdf::Lambertian {

@@ -3,9 +3,8 @@
 //! lights, so they are traced together as packets of up to [`PACKET_SIZE`] rays.
 
 use super::batch::{PathState, ShadowBatch};
-use crate::alpha::RayKey;
 use crate::math::{Rgb, Vec3A};
-use crate::render_scene::{PACKET_SIZE, Packet, RenderScene, TraversalStack};
+use crate::render_scene::{PACKET_SIZE, Packet, RayKey, RenderScene, TraversalStack};
 
 /// Traces the shadow rays (made at `bounce`) and accumulates visible contributions into the
 /// paths' radiance. Returns the number of shadow rays traced.
@@ -32,7 +31,6 @@ fn trace_all<const THROUGH: bool>(
     bounce: u32,
     paths: &mut PathState,
 ) -> u64 {
-    let per = shadows.per_path;
     let mut traced = 0;
     let mut stack = TraversalStack::default();
     let PathState {
@@ -41,8 +39,6 @@ fn trace_all<const THROUGH: bool>(
         ..
     } = paths;
     for (i, radiance) in path_radiance.iter_mut().enumerate() {
-        let count = shadows.count[i] as usize;
-        let chunk = i * per..i * per + count;
         // The coverage test of alpha-tested primitives takes one number per ray: the ray's
         // place in the path's chunk (1-based; back-side rays count on past the front ones).
         let key = |first_ray: usize| RayKey {
@@ -50,34 +46,18 @@ fn trace_all<const THROUGH: bool>(
             bounce,
             ray: 1 + first_ray as u32,
         };
-        trace_packets(
-            scene,
-            &mut stack,
-            shadows,
-            shadows.origin[i],
-            chunk,
-            key(0),
-            radiance,
-        );
-        traced += count as u64;
+        let front = shadows.front_entries(i);
+        traced += front.len() as u64;
+        let origin = shadows.origin[i];
+        trace_packets(scene, &mut stack, shadows, origin, front, key(0), radiance);
         // Rays through a transmitting surface, from its back side (none on opaque surfaces).
-        let back = if THROUGH {
-            shadows.back_count[i] as usize
-        } else {
-            0
-        };
-        if back > 0 {
-            let chunk = (i + 1) * per - back..(i + 1) * per;
-            trace_packets(
-                scene,
-                &mut stack,
-                shadows,
-                shadows.back_origin[i],
-                chunk,
-                key(per),
-                radiance,
-            );
-            traced += back as u64;
+        if THROUGH {
+            let back = shadows.back_entries(i);
+            if !back.is_empty() {
+                traced += back.len() as u64;
+                let (origin, key) = (shadows.back_origin[i], key(shadows.per_path));
+                trace_packets(scene, &mut stack, shadows, origin, back, key, radiance);
+            }
         }
     }
     traced

@@ -218,7 +218,7 @@ fn blender_gltf_export_gives_the_documented_scene() {
     // glass exactly the seed's delta materials.
     use wavetrace::internals::Bsdf;
     let mut kinds: Vec<&str> = flat
-        .materials
+        .materials()
         .iter()
         .map(|m| match m {
             Bsdf::Lambertian { .. } => "lambertian",
@@ -233,9 +233,9 @@ fn blender_gltf_export_gives_the_documented_scene() {
         kinds,
         ["glass", "lambertian", "mirror"],
         "{:?}",
-        flat.materials
+        flat.materials()
     );
-    let light = &flat.lights.lights[0];
+    let light = &flat.lights().lights[0];
     match light.shape {
         Shape::Triangle(t) => assert!(t.normal_unnormalized().normalize().z < -0.999),
         _ => panic!("panel is a triangle mesh"),
@@ -483,7 +483,7 @@ fn data_uri_non_indexed_matrix_and_negative_scale_without_normals() {
         }
         _ => unreachable!(),
     }
-    assert_eq!(flat.vertex_normals[0], [Vec3::ZERO; 3]);
+    assert_eq!(flat.vertex_normals(0), [Vec3::ZERO; 3]);
 }
 
 #[test]
@@ -617,13 +617,13 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
     );
     let flat = flatten(&with_camera(scene.world), &path).unwrap();
     // uv' = offset + scale * uv, applied at each lookup.
-    let transform = flat.material_textures[0].base_color.uv_transform;
+    let transform = flat.material_textures()[0].base_color.uv_transform;
     assert_eq!(
         [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]].map(|uv| transform.apply(uv.into())),
         [[0.5, 0.0], [1.0, 0.0], [0.5, 1.0]].map(wavetrace::math::Vec2::from)
     );
-    assert_eq!(flat.textures.len(), 1);
-    let t = &flat.textures[0];
+    assert_eq!(flat.textures().len(), 1);
+    let t = &flat.textures()[0];
     let left = t.lookup(wavetrace::math::Vec2::new(0.25, 0.5));
     let right = t.lookup(wavetrace::math::Vec2::new(0.75, 0.5));
     assert!(
@@ -641,7 +641,7 @@ fn base_colour_textures_are_decoded_sampled_and_transformed() {
         "clamp to edge"
     );
     assert!(
-        matches!(flat.materials[0], wavetrace::internals::Bsdf::Lambertian { albedo } if albedo == Rgb::new(0.5, 1.0, 1.0))
+        matches!(flat.materials()[0], wavetrace::internals::Bsdf::Lambertian { albedo } if albedo == Rgb::new(0.5, 1.0, 1.0))
     );
 }
 
@@ -725,7 +725,7 @@ fn punctual_lights_give_their_analytic_radiance() {
         let scene = load_scene_with(&path, &unitless).expect("loads");
         assert!(has_lights(&scene.world), "{name}");
         let flat = flatten(&scene.world, &path).unwrap();
-        assert_eq!(flat.lights.delta_lights.len(), 1);
+        assert_eq!(flat.lights().delta_lights.len(), 1);
         let colour = light.get("color").map_or(Rgb::ONE, vec3);
         // The lamp is 2 units above the ground: E = 8 / 2^2 for point and spot, 3 for the sun.
         let irradiance = match name {

@@ -22,6 +22,10 @@ mod environment;
 mod furnace;
 mod fuzz_regressions;
 mod geometry_import;
+// The examples' error measures (`examples/common/`), tested here.
+#[allow(dead_code)]
+#[path = "../../examples/common/image_error.rs"]
+mod image_error;
 mod import;
 mod import_robust;
 mod instancing;

@@ -284,7 +284,7 @@ fn each_gltf_texture_changes_its_own_region_of_the_image() {
         ..Default::default()
     };
     let all = flat(&textured_quad(dir.path(), "all", true, true, true, true));
-    assert_eq!(all.textures.len(), 4, "four textures, each used once");
+    assert_eq!(all.textures().len(), 4, "four textures, each used once");
     let estimate = |scene: &RenderScene, quadrant: u32| {
         region_estimate(scene, &settings, uv_of_pixel, |u, v| {
             quadrant_of(u, v) == Some(quadrant)

@@ -1,11 +1,13 @@
-//! Error of an image against a reference image: the figures of noise comparisons
-//! (`examples/image_error.rs`, `examples/equal_time.rs`).
+//! Error of an image against a reference image: the figures of noise comparisons, shared by
+//! the examples that make them (`examples/image_error.rs`, `examples/equal_time.rs`, which
+//! include this file as a module); its tests run with the end-to-end tests
+//! (`tests/e2e/main.rs` includes it too).
 //!
 //! Per-sample variance shows in the plain mean squared error; the relative MSE weighs dark
 //! pixels as much as bright ones; the share of the squared error held by the worst 1% of
 //! pixels tells fireflies (a few pixels hold most of it) from noise spread over the image.
 
-use crate::film::Image;
+use wavetrace::Image;
 
 /// The constant of the relative MSE's denominator: `(x - ref)^2 / (ref^2 + RELATIVE_EPSILON)`,
 /// per pixel and channel, so that black reference pixels do not divide by zero (the
@@ -77,7 +79,7 @@ pub fn image_error(image: &Image, reference: &Image) -> Option<ImageError> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Rgb;
+    use wavetrace::math::Rgb;
 
     fn image(pixels: Vec<Rgb>) -> Image {
         Image {
