@@ -426,6 +426,7 @@ fn box_ray_setup_matches_the_scalar_inverse_and_near_planes() {
 }
 
 #[test]
+#[ignore = "slow: stress, an 8,000-triangle chain down to the depth limit (~6 s)"]
 fn a_chain_of_identical_triangles_is_refused_without_deep_recursion() {
     // Copies of one triangle make the binary tree a long chain; the collapse must give up
     // at the depth limit instead of recursing down the whole chain, which would overflow
