@@ -206,6 +206,10 @@ pub struct SceneDefaults {
     pub shadow_rays: Option<u32>,
     /// Where the random numbers come from (`sampler = "independent" | "sobol"`).
     pub sampler: Option<crate::math::rng::Sampler>,
+    /// The pixel filter (`filter = "box" | "gaussian" | "blackman-harris"`).
+    pub filter: Option<crate::filter::FilterKind>,
+    /// The pixel filter's width in pixels (`filter_width = 1.5`).
+    pub filter_width: Option<f32>,
 }
 
 impl SceneDefaults {
@@ -217,6 +221,8 @@ impl SceneDefaults {
             spp: over.spp.or(self.spp),
             shadow_rays: over.shadow_rays.or(self.shadow_rays),
             sampler: over.sampler.or(self.sampler),
+            filter: over.filter.or(self.filter),
+            filter_width: over.filter_width.or(self.filter_width),
         }
     }
 }
