@@ -1,6 +1,8 @@
-//! The pinhole camera: film coordinates to world-space rays.
+//! The pinhole camera: film coordinates to world-space rays and back, with the pixel filter
+//! that places each camera sample around its pixel ([`crate::filter`]).
 
-use crate::math::{Vec2, Vec3A};
+use crate::filter::{FilterSampler, PixelFilter};
+use crate::math::{Rgb, Vec2, Vec3A};
 use crate::scene::Camera;
 
 /// A camera prepared for an image of a given size.
@@ -20,6 +22,8 @@ pub struct PinholeCamera {
     plane_distance: f32,
     /// Area of one pixel on the image plane.
     pixel_area: f32,
+    /// Where a pixel's samples fall around it (the box of 1 px unless [`Self::with_filter`]).
+    filter: FilterSampler,
 }
 
 impl PinholeCamera {
@@ -52,6 +56,15 @@ impl PinholeCamera {
             plane_normal,
             plane_distance: top_left.dot(plane_normal),
             pixel_area: pixel_right.cross(pixel_down).length(),
+            filter: FilterSampler::default(),
+        }
+    }
+
+    /// The camera with pixel filter `filter` (its table built here, once per render).
+    pub fn with_filter(self, filter: PixelFilter) -> Self {
+        PinholeCamera {
+            filter: FilterSampler::new(filter),
+            ..self
         }
     }
 
@@ -62,10 +75,13 @@ impl PinholeCamera {
     }
 
     /// The density, per unit solid angle, of the direction of a camera ray of one pixel when
-    /// that ray goes along `direction` (unit) through the pixel: the box filter samples the
-    /// pixel's area on the image plane uniformly, and an area `dA` there subtends
-    /// `dA cos^3(theta) / h^2` (`h` the plane's distance, `theta` the angle to its normal).
-    /// Zero for directions away from the image plane.
+    /// that ray goes along `direction` (unit) through the pixel, for the box filter of 1 px:
+    /// it samples the pixel's area on the image plane uniformly, and an area `dA` there
+    /// subtends `dA cos^3(theta) / h^2` (`h` the plane's distance, `theta` the angle to its
+    /// normal). Zero for directions away from the image plane. With another filter, the density
+    /// for a pixel is this times the filter's density at the offset from the pixel's centre
+    /// ([`Self::splat`] applies it); the caustics' MIS weights use this one on both sides, which
+    /// keeps their sum 1 (an unbiased, if not exactly balanced, heuristic).
     #[inline]
     pub fn direction_density(&self, direction: Vec3A) -> f32 {
         let cos = direction.dot(self.plane_normal);
@@ -75,10 +91,10 @@ impl PinholeCamera {
         self.plane_distance * self.plane_distance / (self.pixel_area * cos * cos * cos)
     }
 
-    /// The pixel (row-major index) whose camera rays pass through the world point `p`, if
-    /// it lies in front of the camera and projects into the image.
+    /// The film position (pixels from the film's top-left corner, x right, y down) the world
+    /// point `p` projects to, if it lies in front of the camera; it may lie off the film.
     #[inline]
-    pub fn pixel_of(&self, p: Vec3A) -> Option<u32> {
+    pub fn film_position(&self, p: Vec3A) -> Option<Vec2> {
         let d = p - self.eye;
         let along = d.dot(self.plane_normal);
         if along <= 0.0 || !along.is_finite() {
@@ -87,16 +103,46 @@ impl PinholeCamera {
         let on_plane = d * (self.plane_distance / along) - self.top_left;
         let x = on_plane.dot(self.pixel_right) / self.pixel_right.length_squared();
         let y = on_plane.dot(self.pixel_down) / self.pixel_down.length_squared();
-        let inside = x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32;
+        Some(Vec2::new(x, y))
+    }
+
+    /// The film position of the world point `p` if some pixel's camera rays (through its
+    /// filter) pass through it: in front of the camera, and on the film or within the
+    /// filter's reach of it.
+    #[inline]
+    pub fn film_point(&self, p: Vec3A) -> Option<Vec2> {
+        self.film_position(p)
+            .filter(|&at| self.filter.reaches_film(at, self.width, self.height))
+    }
+
+    /// The pixel (row-major index) whose camera rays pass through the world point `p` with
+    /// the box filter of 1 px, if it lies in front of the camera and projects into the image.
+    #[inline]
+    pub fn pixel_of(&self, p: Vec3A) -> Option<u32> {
+        let at = self.film_position(p)?;
+        let inside =
+            at.x >= 0.0 && at.y >= 0.0 && at.x < self.width as f32 && at.y < self.height as f32;
         // Rounding at the far edge can still give the width or height itself.
-        let (column, row) = (x as u32, y as u32);
+        let (column, row) = (at.x as u32, at.y as u32);
         (inside && column < self.width && row < self.height).then(|| row * self.width + column)
     }
 
-    /// The ray through `jitter` (in [0,1)^2) inside pixel `pixel` (row-major, row 0 at the
-    /// top): origin and unit direction.
+    /// Adds a light path's contribution `value` at film position `film_point` (from
+    /// [`Self::film_point`], weighted with [`Self::direction_density`]) to the pixels whose
+    /// filters reach it (`splats`, one per pixel, row-major), each times its filter's
+    /// density: the camera's importance for that pixel. With the box of 1 px, the one pixel
+    /// the point falls in.
     #[inline]
-    pub fn generate_ray(&self, pixel: u32, jitter: Vec2) -> (Vec3A, Vec3A) {
+    pub fn splat(&self, film_point: Vec2, value: Rgb, splats: &mut [Rgb]) {
+        self.filter.splat(film_point, value, self.width, splats);
+    }
+
+    /// The camera ray of pixel `pixel` (row-major, row 0 at the top) for the uniform pair `u`
+    /// in [0,1)^2: through the film position the pixel filter draws from `u` (with the box of
+    /// 1 px, `u` itself inside the pixel); origin and unit direction.
+    #[inline]
+    pub fn generate_ray(&self, pixel: u32, u: Vec2) -> (Vec3A, Vec3A) {
+        let jitter = self.filter.sample_jitter(u);
         let x = (pixel % self.width) as f32 + jitter.x;
         let y = (pixel / self.width) as f32 + jitter.y;
         let d = self.top_left + x * self.pixel_right + y * self.pixel_down;

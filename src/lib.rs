@@ -31,6 +31,7 @@ pub(crate) mod bsdf;
 pub(crate) mod camera;
 pub mod error;
 pub mod film;
+pub mod filter;
 pub(crate) mod flatten;
 pub(crate) mod geometry;
 pub(crate) mod lights;
@@ -45,6 +46,7 @@ pub(crate) mod wavefront;
 
 pub use error::{Error, Result};
 pub use film::{Film, Image, Pixels};
+pub use filter::{FilterKind, PixelFilter};
 pub use flatten::{INSTANCE_MIN_TRIANGLES, INSTANCE_MIN_USES, Instancing, flatten, flatten_with};
 pub use output::write_image;
 pub use render_scene::{FlattenTimes, RenderScene};

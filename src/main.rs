@@ -117,6 +117,15 @@ struct RenderArgs {
     /// an area, point or spot light trace them.
     #[arg(long, value_parser = parse_caustic_paths)]
     caustic_paths: Option<f32>,
+    /// Pixel reconstruction filter: box, gaussian or blackman-harris (default: the scene
+    /// file's, else box; a model file (glTF, OBJ) takes Cycles' blackman-harris of 1.5 px).
+    #[arg(long, value_enum)]
+    filter: Option<FilterArg>,
+    /// Pixel filter width in pixels, as Cycles means it: the box's side, the Gaussian's 4
+    /// standard deviations, half the Blackman-Harris window (default: the scene file's, else
+    /// 1 for the box and 1.5 for the others).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true, value_parser = parse_filter_width)]
+    filter_width: Option<f32>,
     /// Seed of the random numbers; the same seed gives the same image on any thread count.
     #[arg(long, default_value_t = wavetrace::math::rng::DEFAULT_SEED)]
     seed: u64,
@@ -180,6 +189,33 @@ impl From<SamplerArg> for wavetrace::math::rng::Sampler {
             SamplerArg::Sobol => Self::Sobol,
         }
     }
+}
+
+/// `--filter`: the library's [`FilterKind`](wavetrace::FilterKind), for clap.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FilterArg {
+    /// Each sample uniform over a square of the width's side (1 px: inside its pixel).
+    Box,
+    /// A Gaussian of standard deviation width / 4.
+    Gaussian,
+    /// The Blackman-Harris window over [-width, width] (Cycles' default).
+    BlackmanHarris,
+}
+
+impl From<FilterArg> for wavetrace::FilterKind {
+    fn from(arg: FilterArg) -> Self {
+        match arg {
+            FilterArg::Box => Self::Box,
+            FilterArg::Gaussian => Self::Gaussian,
+            FilterArg::BlackmanHarris => Self::BlackmanHarris,
+        }
+    }
+}
+
+fn parse_filter_width(text: &str) -> std::result::Result<f32, String> {
+    let width: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    wavetrace::PixelFilter::check_width(width)?;
+    Ok(width)
 }
 
 /// Time cap of a default (adaptive, no --spp, no --time) render: a first image within a
@@ -370,9 +406,17 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             noise_threshold: args.noise_threshold,
             min_spp: args.min_spp,
             caustic_paths: args.caustic_paths,
+            filter: args.filter.map(Into::into),
+            filter_width: args.filter_width,
         };
+        // A model file (often a Blender export) is reconstructed as Cycles does by default:
+        // Blackman-Harris of 1.5 px. Scene files keep the box of 1 px (docs/light-transport.md).
+        let mut scene_defaults = scene.defaults;
+        if placement != Placement::SceneFile {
+            scene_defaults.filter.get_or_insert(wavetrace::FilterKind::BlackmanHarris);
+        }
         let mut settings =
-            RenderSettings::resolve(&scene.defaults, &overrides, flat.camera().aspect_ratio);
+            RenderSettings::resolve(&scene_defaults, &overrides, flat.camera().aspect_ratio);
         if args.time.is_some() && args.spp.is_none() {
             // With a time budget and no sample count, the budget decides (and the noise
             // threshold, if adaptive).

@@ -4,6 +4,7 @@
 //! defaults ([`RenderSettings::resolve`]). Settings import nothing from the loader.
 
 use crate::error::{Error, Result};
+use crate::filter::{FilterKind, PixelFilter};
 use crate::math::rng::{DEFAULT_SEED, Sampler};
 
 /// Largest accepted image side, in pixels.
@@ -27,6 +28,10 @@ pub struct SceneDefaults {
     pub shadow_rays: Option<u32>,
     /// Where the random numbers come from (`sampler = "independent" | "sobol"`).
     pub sampler: Option<Sampler>,
+    /// The pixel filter (`filter = "box" | "gaussian" | "blackman-harris"`).
+    pub filter: Option<crate::filter::FilterKind>,
+    /// The pixel filter's width in pixels (`filter_width = 1.5`).
+    pub filter_width: Option<f32>,
 }
 
 impl SceneDefaults {
@@ -38,6 +43,8 @@ impl SceneDefaults {
             spp: over.spp.or(self.spp),
             shadow_rays: over.shadow_rays.or(self.shadow_rays),
             sampler: over.sampler.or(self.sampler),
+            filter: over.filter.or(self.filter),
+            filter_width: over.filter_width.or(self.filter_width),
         }
     }
 }
@@ -115,6 +122,11 @@ pub struct RenderSettings {
     /// seen after a diffuse bounce, `wavefront::light_vertices`), when light paths run. On by
     /// default; the examples and tests turn it off to compare (no flag of the command line).
     pub caustic_connections: bool,
+    /// The pixel reconstruction filter, by filter importance sampling ([`crate::filter`]):
+    /// where each camera sample falls around its pixel. The box of 1 px (each sample inside
+    /// its pixel) by default; the command line gives model files Cycles' Blackman-Harris of
+    /// 1.5 px.
+    pub filter: PixelFilter,
 }
 
 /// Default light paths per pixel and pass for caustics: a quarter. On the room 0.25, 1 and 4
@@ -142,6 +154,7 @@ impl Default for RenderSettings {
             max_depth: 1024,
             caustic_paths: DEFAULT_CAUSTIC_PATHS,
             caustic_connections: true,
+            filter: PixelFilter::BOX,
         }
     }
 }
@@ -172,6 +185,10 @@ pub struct RenderOverrides {
     pub min_spp: Option<u32>,
     /// Light paths per pixel and pass for caustics; 0 turns them off.
     pub caustic_paths: Option<f32>,
+    /// The pixel filter's shape.
+    pub filter: Option<FilterKind>,
+    /// The pixel filter's width in pixels.
+    pub filter_width: Option<f32>,
 }
 
 impl RenderSettings {
@@ -186,6 +203,11 @@ impl RenderSettings {
     /// noise threshold is 0: a first render without options comes out clean, and `--spp N`
     /// keeps exactly N samples in every pixel. A sample count together with a noise threshold
     /// is adaptive up to that count.
+    ///
+    /// The pixel filter's shape comes from the overrides, else the scene, else the box; its
+    /// width from the same level as the shape or a higher one, else the shape's default (so
+    /// `--filter gaussian` over a scene's `filter = "box", filter_width = 2` is the Gaussian
+    /// of its default 1.5 px).
     pub fn resolve(
         scene: &SceneDefaults,
         overrides: &RenderOverrides,
@@ -240,6 +262,7 @@ impl RenderSettings {
                 .or(scene.sampler)
                 .unwrap_or(defaults.sampler),
             caustic_paths: overrides.caustic_paths.unwrap_or(defaults.caustic_paths),
+            filter: resolve_filter(scene, overrides),
             ..defaults
         }
     }
@@ -295,12 +318,32 @@ impl RenderSettings {
                 self.caustic_paths
             ));
         }
+        if let Err(message) = PixelFilter::check_width(self.filter.width) {
+            return bad(message);
+        }
         Ok(())
     }
 
     /// Number of pixels.
     pub fn pixel_count(&self) -> u64 {
         self.width as u64 * self.height as u64
+    }
+}
+
+/// The pixel filter: the shape from the highest level that names one, the width from that
+/// level or a higher one, else the shape's default width.
+fn resolve_filter(scene: &SceneDefaults, overrides: &RenderOverrides) -> PixelFilter {
+    let (kind, width) = match (overrides.filter, scene.filter) {
+        (Some(kind), _) => (kind, overrides.filter_width),
+        (None, Some(kind)) => (kind, overrides.filter_width.or(scene.filter_width)),
+        (None, None) => (
+            FilterKind::Box,
+            overrides.filter_width.or(scene.filter_width),
+        ),
+    };
+    PixelFilter {
+        kind,
+        width: width.unwrap_or(kind.default_width()),
     }
 }
 
@@ -337,7 +380,7 @@ mod tests {
             height: width,
             spp,
             shadow_rays,
-            sampler: None,
+            ..SceneDefaults::default()
         }
     }
 
@@ -426,6 +469,51 @@ mod tests {
             ..RenderSettings::default()
         };
         assert!(bad.validate().is_err());
+    }
+
+    #[test]
+    fn the_filter_comes_whole_from_the_highest_level_that_names_it() {
+        let resolve = |scene: SceneDefaults, flags: RenderOverrides| {
+            RenderSettings::resolve(&scene, &flags, None).filter
+        };
+        let none = RenderOverrides::default();
+        assert_eq!(resolve(SceneDefaults::default(), none), PixelFilter::BOX);
+        let scene = SceneDefaults {
+            filter: Some(FilterKind::Box),
+            filter_width: Some(2.0),
+            ..SceneDefaults::default()
+        };
+        assert_eq!(resolve(scene, none).width, 2.0);
+        let gaussian = RenderOverrides {
+            filter: Some(FilterKind::Gaussian),
+            ..RenderOverrides::default()
+        };
+        assert_eq!(
+            resolve(scene, gaussian),
+            PixelFilter {
+                kind: FilterKind::Gaussian,
+                width: 1.5
+            }
+        );
+        let wide = RenderOverrides {
+            filter_width: Some(3.0),
+            ..RenderOverrides::default()
+        };
+        assert_eq!(resolve(scene, wide).width, 3.0);
+        assert_eq!(
+            resolve(SceneDefaults::default(), wide).kind,
+            FilterKind::Box
+        );
+        for width in [0.0, -1.0, f32::NAN, 17.0] {
+            let settings = RenderSettings {
+                filter: PixelFilter {
+                    kind: FilterKind::Gaussian,
+                    width,
+                },
+                ..RenderSettings::default()
+            };
+            assert!(settings.validate().is_err(), "{width}");
+        }
     }
 
     #[test]

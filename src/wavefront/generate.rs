@@ -7,7 +7,7 @@ use crate::math::rng::{Sampler, dim};
 use std::ops::Range;
 
 /// Starts one path per pixel of `pixels` for sample `sample_index` (numbers from `sampler`): resets the path state and
-/// writes the camera rays (box filter: the sample is uniform inside its pixel). With
+/// writes the camera rays (each sample placed around its pixel by the camera's pixel filter). With
 /// `active` (a flag per pixel of the film: adaptive sampling), only the active pixels.
 #[allow(clippy::too_many_arguments)]
 pub fn generate_camera_rays(

@@ -146,8 +146,8 @@ pub fn trace_light_paths(
     let mut rays = 0;
     for job in jobs {
         rays += job.rays;
-        for (pixel, value) in job.splats {
-            splats[pixel as usize] += value;
+        for (film_point, value) in job.splats {
+            camera.splat(film_point, value, splats);
         }
         light_vertices.extend_from_slice(&job.vertices);
     }
@@ -157,7 +157,8 @@ pub fn trace_light_paths(
 /// What one job of light paths found, in path order.
 #[derive(Default)]
 struct JobOutput {
-    splats: Vec<(u32, Rgb)>,
+    /// Film position and value (for the box of 1 px) of each splat.
+    splats: Vec<(Vec2, Rgb)>,
     vertices: Vec<LightVertex>,
     rays: u64,
 }
@@ -190,7 +191,12 @@ struct Emission<'a> {
 impl LightTracer<'_> {
     /// Light path `k`: its splat (pixel, value), if it makes one; counts its rays in
     /// `out.rays` and keeps its diffuse point in `out.vertices` (if asked to).
-    fn trace(&self, stack: &mut TraversalStack, k: u64, out: &mut JobOutput) -> Option<(u32, Rgb)> {
+    fn trace(
+        &self,
+        stack: &mut TraversalStack,
+        k: u64,
+        out: &mut JobOutput,
+    ) -> Option<(Vec2, Rgb)> {
         let rays = &mut out.rays;
         let scene = self.scene;
         // Paths beyond 2^32 in a pass (huge images) salt the seed with the high bits.
@@ -367,9 +373,9 @@ impl LightTracer<'_> {
         throughput: Rgb,
         area_light: Option<&AreaLight>,
         rays: &mut u64,
-    ) -> Option<(u32, Rgb)> {
+    ) -> Option<(Vec2, Rgb)> {
         let scene = self.scene;
-        let pixel = self.camera.pixel_of(at.p)?;
+        let film_point = self.camera.film_point(at.p)?;
         let to_eye = self.camera.eye() - at.p;
         let distance = to_eye.length();
         let wo = to_eye / distance;
@@ -431,7 +437,7 @@ impl LightTracer<'_> {
                 ray_key,
             )
             .is_some();
-        (!blocked).then_some((pixel, value))
+        (!blocked).then_some((film_point, value))
     }
 }
 

@@ -111,7 +111,8 @@ pub fn render(
 ) -> Result<(Film, RenderStats)> {
     settings.validate()?;
     let start = Instant::now();
-    let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height);
+    let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height)
+        .with_filter(settings.filter);
     let pixel_count = settings.width * settings.height;
     let caustics_traced = light_paths::caustics_traced(scene, settings);
     check_image_memory(settings, caustics_traced)?;

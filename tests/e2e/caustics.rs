@@ -245,6 +245,33 @@ fn glass_caustic_with_light_paths_equals_the_path_tracer_alone() {
 }
 
 #[test]
+fn glass_caustic_with_light_paths_equals_the_path_tracer_alone_under_a_wide_filter() {
+    // The light paths' splats are spread over the pixels by the filter's density; the camera
+    // samples of those pixels land around them by the same density.
+    let scene = glass_caustic_scene();
+    let (x0, y0) = (14, 19);
+    let both = |settings: &RenderSettings| {
+        let (a, b) = independent_pair(&scene, settings);
+        vec![
+            mean_and_error(&a, &b),
+            block_estimate(&a, &b, x0..x0 + 4, y0..y0 + 4),
+        ]
+    };
+    let filtered = |spp, caustic_paths| RenderSettings {
+        filter: wavetrace::PixelFilter::CYCLES,
+        ..settings(spp, caustic_paths)
+    };
+    let with = both(&filtered(96, 1.0));
+    let without = both(&filtered(384, 0.0));
+    assert_parts_agree(
+        "glass caustic, Blackman-Harris",
+        ["image", "caustic"],
+        with,
+        without,
+    );
+}
+
+#[test]
 fn light_paths_do_not_depend_on_threads_or_batches() {
     let scene = glass_caustic_scene();
     let base = RenderSettings {

@@ -255,6 +255,16 @@ fn scene_cases() -> Vec<Case> {
             ],
         ),
         case(
+            "unknown_filter.toml",
+            format!("{GOOD}[render]\nfilter = \"sinc\"\n"),
+            &["line 13, column 10", "unknown variant `sinc`"],
+        ),
+        case(
+            "bad_filter_width.toml",
+            format!("{GOOD}[render]\nfilter_width = 0\n"),
+            &["line 13, column 16", "pixel filter width", "got 0"],
+        ),
+        case(
             "cycle_a.toml",
             format!("include = [\"cycle_b.toml\"]\n{GOOD}"),
             // reported in cycle_b.toml, where the include closes the cycle
@@ -335,6 +345,15 @@ fn bad_flags_are_usage_errors() {
         ("--time", "soon", "--time"),
         ("--exposure", "nan", "exposure must lie in -64..=64 stops"),
         ("--threads", "0", "0 is not in 1..=1024"),
+        ("--filter", "sinc", "invalid value 'sinc'"),
+        (
+            "--filter-width",
+            "0",
+            "pixel filter width must be a number of pixels in (0, 16]",
+        ),
+        ("--filter-width", "-1", "got -1"),
+        ("--filter-width", "nan", "got NaN"),
+        ("--filter-width", "17", "got 17"),
     ] {
         let out = wavetrace()
             .args(["render", "-q"])

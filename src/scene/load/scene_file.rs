@@ -148,6 +148,8 @@ struct RenderDef {
     spp: Option<Spanned<u32>>,
     shadow_rays: Option<Spanned<u32>>,
     sampler: Option<crate::math::rng::Sampler>,
+    filter: Option<crate::filter::FilterKind>,
+    filter_width: Option<Spanned<f32>>,
 }
 
 impl RenderDef {
@@ -184,6 +186,15 @@ impl RenderDef {
             spp: check(&self.spp, 1..=u32::MAX, "spp (samples per pixel)")?,
             shadow_rays: check(&self.shadow_rays, 1..=MAX_SHADOW_RAYS, "shadow_rays")?,
             sampler: self.sampler,
+            filter: self.filter,
+            filter_width: match &self.filter_width {
+                Some(w) => Some(
+                    crate::filter::PixelFilter::check_width(*w.get_ref())
+                        .map(|()| *w.get_ref())
+                        .map_err(|m| source.error(w.span().start, m))?,
+                ),
+                None => None,
+            },
         };
         if let (Some(w), Some(h), Some(at)) = (defaults.width, defaults.height, &self.height)
             && w as u64 * h as u64 > MAX_PIXELS
