@@ -24,6 +24,13 @@ pub const DEFAULT_NOISE_THRESHOLD: f32 = 0.05;
 pub const DEFAULT_MIN_SPP: u32 = 16;
 /// Most samples per pixel of an adaptive render without a time budget.
 pub const DEFAULT_MAX_SPP: u32 = 1024;
+/// Noise threshold of a default render that is denoised: the denoiser removes the noise
+/// left at this level, so the tiles stop far sooner (docs/denoising.md).
+pub const DENOISED_NOISE_THRESHOLD: f32 = 0.25;
+/// Most samples per pixel of a default render that is denoised: a tile that has not met the
+/// threshold by then (caustics seen after a diffuse bounce) gains little from more samples
+/// once denoised (docs/denoising.md).
+pub const DENOISED_MAX_SPP: u32 = 64;
 
 /// Adaptive sampling: tiles of pixels stop taking samples once their error estimate is below
 /// the threshold; the others go on, up to [`RenderSettings::spp`].
@@ -86,6 +93,10 @@ pub struct RenderSettings {
     /// seen after a diffuse bounce, `wavefront::light_vertices`), when light paths run. On by
     /// default; the examples and tests turn it off to compare (no flag of the command line).
     pub caustic_connections: bool,
+    /// Whether each sample's auxiliary values (albedo and normal at the first non-specular
+    /// hit, depth) are averaged into film layers, for the denoiser and `--aov`. They never
+    /// change the colour.
+    pub record_aovs: bool,
 }
 
 /// Default light paths per pixel and pass for caustics: a quarter. On the room 0.25, 1 and 4
@@ -113,6 +124,7 @@ impl Default for RenderSettings {
             max_depth: 1024,
             caustic_paths: DEFAULT_CAUSTIC_PATHS,
             caustic_connections: true,
+            record_aovs: false,
         }
     }
 }
