@@ -415,8 +415,17 @@ fn write_output(args: &RenderArgs, output: &Path, film: &Film, denoise: bool) ->
     if denoise {
         let guides = (film.layer(Layer::Albedo), film.layer(Layer::Normal));
         if let (Some(albedo), Some(normal)) = guides {
+            let start = Instant::now();
             match wavetrace::denoise::denoise(&noisy, &albedo, &normal) {
-                Ok(image) => color = Some(image),
+                Ok(image) => {
+                    if !args.quiet {
+                        eprintln!(
+                            "wavetrace: denoised (Open Image Denoise) in {:.2} s",
+                            start.elapsed().as_secs_f64()
+                        );
+                    }
+                    color = Some(image);
+                }
                 Err(e) => eprintln!("warning: {e}; the image is written as rendered (noisy)"),
             }
         }
