@@ -1,5 +1,6 @@
 //! The film: per-pixel sums of sample radiance and sample counts, the error estimate that
-//! adaptive sampling reads, and the resolved image.
+//! adaptive sampling reads, the optional auxiliary layers (albedo, normal, depth: the
+//! denoiser's guides and `--aov`), and the resolved image.
 
 use crate::math::Rgb;
 use rayon::prelude::*;
@@ -17,8 +18,56 @@ pub struct Film {
     /// estimate of adaptive sampling; empty when the film keeps no estimate.
     odd_sum: Vec<[f64; 3]>,
     samples: Vec<u32>,
+    /// Sums of each pixel's samples' auxiliary values; empty when the film keeps no layers.
+    aov_sum: Vec<AovSum>,
     /// Samples discarded because their radiance was NaN or infinite.
     pub rejected_samples: u64,
+}
+
+/// One sample's auxiliary values, recorded at its path's first non-specular hit
+/// (`wavefront::aov`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AovSample {
+    /// Reflectance there, times the tints of the mirrors and glass on the way.
+    pub albedo: Rgb,
+    /// Unit shading normal there, world space (zero where the path escaped).
+    pub normal: Rgb,
+    /// Distance from the camera to the camera ray's first hit (0 where it escaped).
+    pub depth: f32,
+}
+
+/// Per-pixel sums of [`AovSample`]s, in f64 and in sample order like the colour sums.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AovSum {
+    albedo: [f64; 3],
+    normal: [f64; 3],
+    depth: f64,
+}
+
+impl AovSum {
+    #[inline]
+    fn add(&mut self, sample: &AovSample) {
+        for c in 0..3 {
+            self.albedo[c] += sample.albedo[c] as f64;
+            self.normal[c] += sample.normal[c] as f64;
+        }
+        self.depth += sample.depth as f64;
+    }
+}
+
+/// A per-pixel layer of the film besides its colour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layer {
+    /// Mean albedo at the first non-specular hit.
+    Albedo,
+    /// Mean shading normal there, renormalised (zero where every sample escaped).
+    Normal,
+    /// Mean camera distance of the first hit (x in all three channels).
+    Depth,
+    /// Samples taken (x in all three channels).
+    Samples,
+    /// Estimated variance of the pixel's mean, per channel (adaptive sampling only).
+    Variance,
 }
 
 impl Film {
@@ -31,7 +80,76 @@ impl Film {
             sum: vec![[0.0; 3]; n],
             odd_sum: Vec::new(),
             samples: vec![0; n],
+            aov_sum: Vec::new(),
             rejected_samples: 0,
+        }
+    }
+
+    /// The same film, keeping the auxiliary layers too (56 more bytes per pixel).
+    pub fn with_aovs(self) -> Self {
+        let n = self.samples.len();
+        Film {
+            aov_sum: vec![AovSum::default(); n],
+            ..self
+        }
+    }
+
+    /// Whether the film keeps the auxiliary layers.
+    pub fn has_aovs(&self) -> bool {
+        !self.aov_sum.is_empty()
+    }
+
+    /// Bytes per pixel of the auxiliary layers.
+    pub fn aov_bytes_per_pixel() -> u64 {
+        size_of::<AovSum>() as u64
+    }
+
+    /// A layer of the film as an image; `None` for albedo, normal or depth on a film that
+    /// keeps no auxiliary layers, and for the variance on a film without error estimate.
+    pub fn layer(&self, layer: Layer) -> Option<Image> {
+        let available = match layer {
+            Layer::Albedo | Layer::Normal | Layer::Depth => self.has_aovs(),
+            Layer::Samples => true,
+            Layer::Variance => !self.odd_sum.is_empty(),
+        };
+        if !available {
+            return None;
+        }
+        let pixels = (0..self.samples.len())
+            .into_par_iter()
+            .map(|i| self.layer_pixel(layer, i))
+            .collect();
+        Some(Image {
+            width: self.width,
+            height: self.height,
+            pixels,
+        })
+    }
+
+    fn layer_pixel(&self, layer: Layer, i: usize) -> Rgb {
+        let n = self.samples[i];
+        let inv = if n > 0 { 1.0 / n as f64 } else { 0.0 };
+        let mean = |v: [f64; 3]| {
+            Rgb::new(
+                (v[0] * inv) as f32,
+                (v[1] * inv) as f32,
+                (v[2] * inv) as f32,
+            )
+        };
+        match layer {
+            Layer::Albedo => mean(self.aov_sum[i].albedo),
+            Layer::Normal => mean(self.aov_sum[i].normal).normalize_or_zero(),
+            Layer::Depth => Rgb::splat((self.aov_sum[i].depth * inv) as f32),
+            Layer::Samples => Rgb::splat(n as f32),
+            Layer::Variance => {
+                // The mean of all samples minus the mean of the odd half is half the
+                // difference of the two halves' means, whose variance is 4 sigma^2 / n: its
+                // square estimates the variance of the pixel's mean, sigma^2 / n (one
+                // sample of it, unbiased, noisy).
+                let (all, odd) = (self.sum[i], self.odd_sum[i]);
+                let d = |c: usize| ((all[c] - 2.0 * odd[c]) * inv) as f32;
+                Rgb::new(d(0) * d(0), d(1) * d(1), d(2) * d(2))
+            }
         }
     }
 
@@ -53,9 +171,19 @@ impl Film {
 
     /// Adds one sample to a pixel; a NaN or infinite sample is counted and discarded.
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
+        self.add_sample_with_aov(pixel, radiance, None);
+    }
+
+    /// Adds one sample and, if the film keeps auxiliary layers and `aov` is given, its
+    /// auxiliary values (only when the sample itself is added, so that every layer averages
+    /// the same samples).
+    pub fn add_sample_with_aov(&mut self, pixel: u32, radiance: Rgb, aov: Option<&AovSample>) {
         let i = pixel as usize;
         let odd_sum = self.odd_sum.get_mut(i);
         let added = accumulate(&mut self.sum[i], odd_sum, &mut self.samples[i], radiance);
+        if added && let (Some(sum), Some(aov)) = (self.aov_sum.get_mut(i), aov) {
+            sum.add(aov);
+        }
         self.rejected_samples += u64::from(!added);
     }
 
@@ -106,25 +234,25 @@ impl Film {
     ) -> impl IndexedParallelIterator<Item = FilmRegion<'_>> {
         let range = pixels.start as usize..pixels.end as usize;
         // Without odd sums each region gets an empty slice of them.
-        let odd_sums: Vec<&mut [[f64; 3]]> = if self.odd_sum.is_empty() {
-            std::iter::repeat_with(|| &mut [][..])
-                .take(range.len().div_ceil(size))
-                .collect()
-        } else {
-            self.odd_sum[range.clone()].chunks_mut(size).collect()
-        };
+        let regions = range.len().div_ceil(size);
+        let odd_sums = optional_chunks(&mut self.odd_sum, range.clone(), size, regions);
+        let aov_sums = optional_chunks(&mut self.aov_sum, range.clone(), size, regions);
         self.sum[range.clone()]
             .par_chunks_mut(size)
             .zip(self.samples[range].par_chunks_mut(size))
             .zip(odd_sums)
+            .zip(aov_sums)
             .enumerate()
-            .map(move |(k, ((sum, samples), odd_sum))| FilmRegion {
-                first_pixel: pixels.start + (k * size) as u32,
-                sum,
-                odd_sum,
-                samples,
-                rejected_samples: 0,
-            })
+            .map(
+                move |(k, (((sum, samples), odd_sum), aov_sum))| FilmRegion {
+                    first_pixel: pixels.start + (k * size) as u32,
+                    sum,
+                    odd_sum,
+                    samples,
+                    aov_sum,
+                    rejected_samples: 0,
+                },
+            )
     }
 
     /// Fewest samples any pixel holds.
@@ -142,6 +270,23 @@ impl Film {
     }
 }
 
+/// `column[range]` cut into chunks of `size`, or `regions` empty slices when the column is
+/// not kept (empty).
+fn optional_chunks<T>(
+    column: &mut [T],
+    range: std::ops::Range<usize>,
+    size: usize,
+    regions: usize,
+) -> Vec<&mut [T]> {
+    if column.is_empty() {
+        std::iter::repeat_with(|| &mut [][..])
+            .take(regions)
+            .collect()
+    } else {
+        column[range].chunks_mut(size).collect()
+    }
+}
+
 /// A run of consecutive pixels of a [`Film`], borrowed to add samples to them: the regions
 /// of one film are filled in parallel, each pixel's samples still in sample order.
 pub struct FilmRegion<'a> {
@@ -149,6 +294,7 @@ pub struct FilmRegion<'a> {
     sum: &'a mut [[f64; 3]],
     odd_sum: &'a mut [[f64; 3]],
     samples: &'a mut [u32],
+    aov_sum: &'a mut [AovSum],
     /// Samples discarded because their radiance was NaN or infinite.
     pub rejected_samples: u64,
 }
@@ -163,9 +309,18 @@ impl FilmRegion<'_> {
     /// is counted and discarded.
     #[inline]
     pub fn add_sample(&mut self, pixel: u32, radiance: Rgb) {
+        self.add_sample_with_aov(pixel, radiance, None);
+    }
+
+    /// Adds one sample and its auxiliary values, as [`Film::add_sample_with_aov`].
+    #[inline]
+    pub fn add_sample_with_aov(&mut self, pixel: u32, radiance: Rgb, aov: Option<&AovSample>) {
         let i = (pixel - self.first_pixel) as usize;
         let odd_sum = self.odd_sum.get_mut(i);
         let added = accumulate(&mut self.sum[i], odd_sum, &mut self.samples[i], radiance);
+        if added && let (Some(sum), Some(aov)) = (self.aov_sum.get_mut(i), aov) {
+            sum.add(aov);
+        }
         self.rejected_samples += u64::from(!added);
     }
 }

@@ -24,11 +24,15 @@
 //! # Ok::<(), wavetrace::Error>(())
 //! ```
 #![warn(missing_docs)]
-#![forbid(unsafe_code)]
+// Unsafe code is forbidden, but for the calls into Open Image Denoise (`denoise`, in builds
+// with that feature), which allow it in that one module.
+#![cfg_attr(not(feature = "denoise"), forbid(unsafe_code))]
+#![cfg_attr(feature = "denoise", deny(unsafe_code))]
 
 pub(crate) mod accel;
 pub(crate) mod bsdf;
 pub(crate) mod camera;
+pub mod denoise;
 pub mod error;
 pub mod film;
 pub mod filter;

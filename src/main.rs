@@ -12,13 +12,19 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
+use wavetrace::film::{Image, Layer};
+use wavetrace::output::NamedLayer;
 use wavetrace::scene::EnvironmentSource;
 use wavetrace::scene::load::{
     EnvironmentOverrides, LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning,
     is_model_file, load_scene_placed,
 };
-use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
-use wavetrace::{Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image};
+use wavetrace::settings::{
+    Adaptive, DENOISED_MAX_SPP, DENOISED_NOISE_THRESHOLD, MAX_IMAGE_SIDE, MAX_SHADOW_RAYS,
+};
+use wavetrace::{
+    Film, Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image,
+};
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -155,6 +161,52 @@ struct RenderArgs {
     /// Camera rays that escape see black; the environment still lights the scene.
     #[arg(long)]
     env_hidden: bool,
+    /// Denoise the image with Open Image Denoise (guided by the albedo and normal layers);
+    /// the default in builds with the `denoise` feature. With no sample flags the render then
+    /// stops sooner (noise threshold 0.25, at most 64 spp).
+    #[arg(long, overrides_with = "no_denoise")]
+    denoise: bool,
+    /// Write the image as rendered, without denoising.
+    #[arg(long, overrides_with = "denoise")]
+    no_denoise: bool,
+    /// Auxiliary layers written beside the colour in the (.exr) output, comma-separated:
+    /// albedo, normal (at the first non-specular hit, mirrors and glass followed), depth,
+    /// noisy (the colour before denoising), spp (samples taken), variance (of the pixel's
+    /// mean; adaptive sampling only).
+    #[arg(long, value_name = "LIST", value_delimiter = ',', value_enum)]
+    aov: Vec<AovName>,
+}
+
+/// `--aov`: the layers the output can hold besides the colour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum AovName {
+    /// Albedo at the first non-specular hit (albedo.R, .G, .B).
+    Albedo,
+    /// Shading normal there, world space (normal.X, .Y, .Z).
+    Normal,
+    /// Distance from the camera to the first hit (depth.Z).
+    Depth,
+    /// The colour before denoising (noisy.R, .G, .B).
+    Noisy,
+    /// Samples per pixel (spp.Y).
+    Spp,
+    /// Estimated variance of the pixel's mean (variance.R, .G, .B).
+    Variance,
+}
+
+impl AovName {
+    /// The layer's name in the file, its channels, and the film layer it comes from (`None`:
+    /// the colour before denoising).
+    fn layout(self) -> (&'static str, &'static [&'static str], Option<Layer>) {
+        match self {
+            AovName::Albedo => ("albedo", &["R", "G", "B"], Some(Layer::Albedo)),
+            AovName::Normal => ("normal", &["X", "Y", "Z"], Some(Layer::Normal)),
+            AovName::Depth => ("depth", &["Z"], Some(Layer::Depth)),
+            AovName::Noisy => ("noisy", &["R", "G", "B"], None),
+            AovName::Spp => ("spp", &["Y"], Some(Layer::Samples)),
+            AovName::Variance => ("variance", &["R", "G", "B"], Some(Layer::Variance)),
+        }
+    }
 }
 
 /// `--env`: three comma-separated numbers are a colour, anything else a file.
@@ -337,11 +389,114 @@ fn signal_name(signal: i32) -> &'static str {
     }
 }
 
+/// A usage error found after parsing: printed as clap prints its own, exit code 2.
+fn usage_error(message: String) -> ! {
+    use clap::CommandFactory;
+    Cli::command()
+        .error(clap::error::ErrorKind::ArgumentConflict, message)
+        .exit()
+}
+
+/// Whether to denoise: `--denoise`/`--no-denoise`, else whether the build can. `--denoise` in
+/// a build without the denoiser is a usage error.
+fn denoise_wanted(args: &RenderArgs) -> bool {
+    if args.denoise && !wavetrace::denoise::AVAILABLE {
+        usage_error(
+            "--denoise: this build has no denoiser; build with `cargo build --release \
+             --features denoise` (run tools/setup_oidn.sh first unless the system has Open \
+             Image Denoise 2)"
+                .into(),
+        );
+    }
+    !args.no_denoise && wavetrace::denoise::AVAILABLE
+}
+
+/// Refuses `--aov` with a PNG output (it holds no layers) before anything is rendered.
+fn check_aov_output(args: &RenderArgs, output: &Path) {
+    let exr = output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if !args.aov.is_empty() && !exr {
+        usage_error(format!(
+            "--aov: {} cannot hold layers; write an OpenEXR file (-o NAME.exr)",
+            output.display()
+        ));
+    }
+}
+
+/// A default render that is denoised (no sample flag, no sample count in the scene) stops
+/// at the denoiser's looser threshold and cap, unless a time budget decides.
+fn tune_for_denoiser(args: &RenderArgs, scene_spp: Option<u32>, settings: &mut RenderSettings) {
+    let sample_flags = args.spp.is_some()
+        || args.noise_threshold.is_some()
+        || args.min_spp.is_some()
+        || args.time.is_some();
+    if sample_flags || scene_spp.is_some() {
+        return;
+    }
+    if let Some(adaptive) = &mut settings.adaptive {
+        *adaptive = Adaptive {
+            noise_threshold: DENOISED_NOISE_THRESHOLD,
+            ..*adaptive
+        };
+        settings.spp = DENOISED_MAX_SPP;
+    }
+}
+
+/// Writes the render: the colour (denoised if asked and possible, else as rendered, with a
+/// warning) and the `--aov` layers beside it.
+fn write_output(args: &RenderArgs, output: &Path, film: &Film, denoise: bool) -> Result<Image> {
+    let noisy = film.resolve();
+    let mut color = None;
+    if denoise {
+        let guides = (film.layer(Layer::Albedo), film.layer(Layer::Normal));
+        if let (Some(albedo), Some(normal)) = guides {
+            let start = Instant::now();
+            match wavetrace::denoise::denoise(&noisy, &albedo, &normal) {
+                Ok(image) => {
+                    if !args.quiet {
+                        eprintln!(
+                            "wavetrace: denoised (Open Image Denoise) in {:.2} s",
+                            start.elapsed().as_secs_f64()
+                        );
+                    }
+                    color = Some(image);
+                }
+                Err(e) => eprintln!("warning: {e}; the image is written as rendered (noisy)"),
+            }
+        }
+    }
+    let color = color.unwrap_or_else(|| noisy.clone());
+    if args.aov.is_empty() {
+        write_image(output, &color, args.exposure)?;
+        return Ok(color);
+    }
+    let mut layers = Vec::new();
+    for name in &args.aov {
+        let (layer_name, channels, source) = name.layout();
+        let image = match source {
+            None => noisy.clone(),
+            Some(layer) => film.layer(layer).ok_or_else(|| {
+                anyhow::anyhow!("--aov {layer_name}: the render kept no such layer")
+            })?,
+        };
+        layers.push(NamedLayer {
+            name: layer_name,
+            channels,
+            image,
+        });
+    }
+    wavetrace::output::write_exr_layers(output, &color, &layers)?;
+    Ok(color)
+}
+
 fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let output = args
         .output
         .clone()
         .unwrap_or_else(|| default_output(&args.scene));
+    let denoise = denoise_wanted(&args);
+    check_aov_output(&args, &output);
     let stop_signal = watch_stop_signals(&output)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.map_or(0, usize::from))
@@ -422,6 +577,20 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             // threshold, if adaptive).
             settings.spp = u32::MAX;
         }
+        if denoise {
+            tune_for_denoiser(&args, scene.defaults.spp, &mut settings);
+        }
+        settings.record_aovs = denoise
+            || args.aov.iter().any(|a| {
+                matches!(a, AovName::Albedo | AovName::Normal | AovName::Depth)
+            });
+        if args.aov.contains(&AovName::Variance) && settings.adaptive.is_none() {
+            usage_error(
+                "--aov variance: the variance is estimated by adaptive sampling, which this \
+                 render does not use (drop --spp, or give --noise-threshold)"
+                    .into(),
+            );
+        }
         settings.validate()?;
         // A default render stops at the noise threshold, 1024 spp or a minute.
         let time_budget = match (args.time, settings.adaptive, args.spp) {
@@ -497,9 +666,14 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         })?;
         bar.finish_and_clear();
 
-        write_image(&output, &film, args.exposure)?;
+        let written = if denoise || !args.aov.is_empty() {
+            write_output(&args, &output, &film, denoise)?
+        } else {
+            write_image(&output, &film, args.exposure)?;
+            film.resolve()
+        };
         if placement == Placement::AsIs
-            && let Some(warning) = dark_image_warning(&film.resolve(), args.exposure)
+            && let Some(warning) = dark_image_warning(&written, args.exposure)
         {
             eprintln!("warning: {warning}");
         }

@@ -1,4 +1,5 @@
-//! Image files: PNG (exposure, sRGB, 8 bit) or OpenEXR (linear float RGB), chosen by the
+//! Image files: PNG (exposure, sRGB, 8 bit) or OpenEXR (linear float RGB, with named
+//! auxiliary layers such as `albedo.R` beside the colour for `--aov`), chosen by the
 //! extension. Files are written to a temporary file beside the target and renamed into place,
 //! so an existing image is never left half-overwritten.
 
@@ -55,6 +56,71 @@ pub fn write_image(path: &Path, image: &impl Pixels, exposure: f32) -> Result<()
     write_atomically(path, |file| match format {
         ImageFormat::Png => encode_png(file, path, image, exposure),
         ImageFormat::Exr => encode_exr(file, path, image),
+    })
+}
+
+/// A named layer of a multi-layer OpenEXR file: its channels are written as `name.channel`
+/// (`albedo.R`, `normal.X`, `depth.Z`), as Blender, OpenImageIO and Mitsuba name them.
+pub struct NamedLayer<'a> {
+    /// Layer name.
+    pub name: &'a str,
+    /// Channel names, one per component of `image` used (at most three: R, G, B).
+    pub channels: &'a [&'a str],
+    /// The layer's values (only the first `channels.len()` components are written).
+    pub image: Image,
+}
+
+/// Writes one OpenEXR file holding `color` as its R, G, B channels and every layer of `layers`
+/// beside it (f32, one part, channels sorted by name as the format wants).
+pub fn write_exr_layers(path: &Path, color: &Image, layers: &[NamedLayer]) -> Result<()> {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrImage, Layer, LayerAttributes,
+        LineOrder, SmallVec, WritableImage,
+    };
+    if ImageFormat::from_path(path)? != ImageFormat::Exr {
+        return Err(Error::input(
+            path,
+            None,
+            "auxiliary layers need an OpenEXR (.exr) output",
+        ));
+    }
+    let component = |image: &Image, c: usize| -> FlatSamples {
+        FlatSamples::F32(image.pixels.iter().map(|p| p[c]).collect())
+    };
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (c, name) in ["R", "G", "B"].into_iter().enumerate() {
+        list.push(AnyChannel::new(name, component(color, c)));
+    }
+    for layer in layers {
+        for (c, channel) in layer.channels.iter().enumerate().take(3) {
+            let name = format!("{}.{channel}", layer.name);
+            list.push(AnyChannel::new(name.as_str(), component(&layer.image, c)));
+        }
+    }
+    let size = (color.width as usize, color.height as usize);
+    let encoding = Encoding {
+        line_order: LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
+    let channels = AnyChannels::sort(list);
+    let image = ExrImage::from_layer(Layer::new(
+        size,
+        LayerAttributes::default(),
+        encoding,
+        channels,
+    ));
+    write_atomically(path, |out| {
+        image.write().to_buffered(out).map_err(|e| match e {
+            exr::error::Error::Io(source) => Error::Io {
+                path: path.to_path_buf(),
+                action: "cannot write",
+                source,
+            },
+            other => Error::Encode {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
+        })
     })
 }
 

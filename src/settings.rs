@@ -60,6 +60,13 @@ pub const DEFAULT_NOISE_THRESHOLD: f32 = 0.05;
 pub const DEFAULT_MIN_SPP: u32 = 16;
 /// Most samples per pixel of an adaptive render without a time budget.
 pub const DEFAULT_MAX_SPP: u32 = 1024;
+/// Noise threshold of a default render that is denoised: the denoiser removes the noise
+/// left at this level, so the tiles stop far sooner (docs/denoising.md).
+pub const DENOISED_NOISE_THRESHOLD: f32 = 0.25;
+/// Most samples per pixel of a default render that is denoised: a tile that has not met the
+/// threshold by then (caustics seen after a diffuse bounce) gains little from more samples
+/// once denoised (docs/denoising.md).
+pub const DENOISED_MAX_SPP: u32 = 64;
 
 /// Adaptive sampling: tiles of pixels stop taking samples once their error estimate is below
 /// the threshold; the others go on, up to [`RenderSettings::spp`].
@@ -127,6 +134,10 @@ pub struct RenderSettings {
     /// its pixel) by default; the command line gives model files Cycles' Blackman-Harris of
     /// 1.5 px.
     pub filter: PixelFilter,
+    /// Whether each sample's auxiliary values (albedo and normal at the first non-specular
+    /// hit, depth) are averaged into film layers, for the denoiser and `--aov`. They never
+    /// change the colour.
+    pub record_aovs: bool,
 }
 
 /// Default light paths per pixel and pass for caustics: a quarter. On the room 0.25, 1 and 4
@@ -155,6 +166,7 @@ impl Default for RenderSettings {
             caustic_paths: DEFAULT_CAUSTIC_PATHS,
             caustic_connections: true,
             filter: PixelFilter::BOX,
+            record_aovs: false,
         }
     }
 }

@@ -2,6 +2,7 @@
 //! per worker thread and render and reused for every bounce and batch; index `i` of every
 //! buffer of a bounce refers to the same live path.
 
+use super::aov::AovColumns;
 use crate::film::FilmRegion;
 use crate::lights::LightUniforms;
 use crate::math::{Rgb, Vec2, Vec3A};
@@ -77,6 +78,9 @@ pub struct PathState {
     /// Where the path stands toward the caustics the pass's light paths also find (always
     /// [`CausticState::None`] when no light paths are traced).
     pub caustic: Vec<CausticState>,
+    /// Auxiliary values (albedo, normal, depth) for the denoiser and `--aov`; empty columns
+    /// when the render records none.
+    pub aov: AovColumns,
 }
 
 impl PathState {
@@ -102,6 +106,9 @@ impl PathState {
         self.radiance_scale.resize(n, 1.0);
         self.medium.resize(n, Rgb::ZERO);
         self.caustic.resize(n, CausticState::None);
+        if self.aov.is_active() {
+            self.aov.resize(n);
+        }
     }
 }
 
@@ -344,7 +351,7 @@ impl ShadowSlots<'_> {
 /// (with their next rays, which become the current rays), and finished paths deliver their
 /// radiance to the film, together with the pass's light-path splats on their pixel
 /// (`splats`, one per pixel of the film, or empty without light paths): one sample of the
-/// combined estimator. Sequential on purpose: the film receives samples in the same order on
+/// combined estimator, with its auxiliary values if they are recorded. Sequential on purpose: the film receives samples in the same order on
 /// every run.
 pub fn compact_paths(
     paths: &mut PathState,
@@ -353,6 +360,7 @@ pub fn compact_paths(
     film: &mut FilmRegion,
 ) {
     let mut kept = 0;
+    let aov = paths.aov.is_active();
     for i in 0..paths.len() {
         if !paths.alive[i] {
             let pixel = paths.pixel[i];
@@ -360,8 +368,11 @@ pub fn compact_paths(
                 Some(splat) => paths.radiance[i] + *splat,
                 None => paths.radiance[i],
             };
-            film.add_sample(pixel, radiance);
+            film.add_sample_with_aov(pixel, radiance, paths.aov.sample.get(i));
             continue;
+        }
+        if aov {
+            paths.aov.move_entry(i, kept);
         }
         paths.pixel[kept] = paths.pixel[i];
         paths.rng_key[kept] = paths.rng_key[i];

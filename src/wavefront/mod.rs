@@ -13,6 +13,7 @@
 //! The decisions read only the film, after whole passes, so the image still does not depend
 //! on threads or batches.
 
+pub mod aov;
 pub mod batch;
 pub mod generate;
 pub mod intersect;
@@ -85,6 +86,10 @@ fn check_image_memory(settings: &RenderSettings, caustics_traced: bool) -> Resul
     let pixels = settings.pixel_count();
     let mut bytes =
         pixels * (Film::bytes_per_pixel(settings.adaptive.is_some()) + OUTPUT_BYTES_PER_PIXEL);
+    if settings.record_aovs {
+        // The layers' sums, and the resolved guides and denoised image beside the output.
+        bytes += pixels * (Film::aov_bytes_per_pixel() + 3 * size_of::<Rgb>() as u64);
+    }
     if caustics_traced {
         bytes += pixels * size_of::<Rgb>() as u64;
         bytes += light_paths::light_path_count(settings, pixels) * size_of::<LightVertex>() as u64;
@@ -122,6 +127,9 @@ pub fn render(
         Some(_) => Film::with_error_estimate(settings.width, settings.height),
         None => Film::new(settings.width, settings.height),
     };
+    if settings.record_aovs {
+        film = film.with_aovs();
+    }
     let mut tiles = settings
         .adaptive
         .map(|a| ActiveTiles::new(settings.width, settings.height, a));
@@ -392,6 +400,9 @@ impl Batch<'_> {
                 let keys = &b.paths.rng_key;
                 intersect::intersect_closest(self.scene, &b.rays, keys, bounce, &mut b.hits)
             });
+            if settings.record_aovs {
+                aov::record_first_surfaces(self.scene, &b.rays, &b.hits, &mut b.paths, bounce);
+            }
             // 3. shade: emission, shadow rays, next rays, Russian roulette
             let params = ShadeParams {
                 bounce,

@@ -17,6 +17,7 @@ mod cli_import_errors;
 mod common;
 mod cornell;
 mod deform;
+mod denoise;
 mod determinism;
 mod environment;
 mod filters;
