@@ -11,8 +11,8 @@
 //! documents the mapping.
 
 use super::{
-    Scene, SceneDefaults, UpAxis, check_mesh, gltf_check, gltf_deform, gltf_fix, gltf_geometry,
-    gltf_memory, gltf_meshopt,
+    Scene, SceneDefaults, UpAxis, check_mesh, gltf_animation, gltf_check, gltf_deform, gltf_fix,
+    gltf_geometry, gltf_memory, gltf_meshopt,
 };
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
@@ -90,6 +90,8 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             None,
         )
     };
+    // Animation hook: `gltf_fix` drops the animations; they are read from the JSON here.
+    let animations = gltf_animation::read_animations(&bytes);
     // The BIN chunk was copied out: the file's bytes are not kept while the buffers load.
     drop(bytes);
     crate::memory::trace_phase("read");
@@ -316,12 +318,22 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                 } else {
                     (Some(Arc::unwrap_or_clone(mesh_data)), None)
                 };
-                for world_from_object in &placements {
+                for (instance, world_from_object) in placements.iter().enumerate() {
                     let entity = world.spawn((
                         Name(name.clone()),
                         Transform(*world_from_object),
                         imported.material,
                     ));
+                    // Animation hook: which node (and instance) placed the entity.
+                    let placed = gltf_animation::Placed::Mesh {
+                        mesh: mesh.index(),
+                        primitive: primitive.index(),
+                        instance: (deform.joints.is_none()
+                            && node.extension_value(GPU_INSTANCING).is_some())
+                        .then_some(instance),
+                        skinned: deform.joints.is_some(),
+                    };
+                    gltf_animation::bind(&mut world, entity, &animations, node.index(), placed);
                     match plain.take() {
                         Some(m) => world.insert_one(entity, m),
                         None => {
@@ -359,7 +371,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     gltf_check::check_perspective(&p).map_err(|message| {
                         Error::input(path, Some(node_location(&node)), message)
                     })?;
-                    world.spawn((Name(name.clone()), camera_of(&world_from_node, &p)));
+                    let entity = world.spawn((Name(name.clone()), camera_of(&world_from_node, &p)));
+                    // Animation hook.
+                    let placed = gltf_animation::Placed::Camera;
+                    gltf_animation::bind(&mut world, entity, &animations, node.index(), placed);
                 }
                 gltf::camera::Projection::Orthographic(_) => warnings.push(format!(
                     "camera '{name}': orthographic cameras are not supported; skipped"
@@ -387,7 +402,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     "light colour and intensity must be finite and non-negative",
                 ));
             }
-            world.spawn((Name(name.clone()), Transform(world_from_node), punctual));
+            let entity = world.spawn((Name(name.clone()), Transform(world_from_node), punctual));
+            // Animation hook.
+            let placed = gltf_animation::Placed::Light;
+            gltf_animation::bind(&mut world, entity, &animations, node.index(), placed);
         }
         let children: Vec<_> = node.children().collect();
         for child in children.into_iter().rev() {
@@ -418,6 +436,19 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
             ));
         }
     }
+    // Animation hook: the bound entities get the file's rig, which keeps the document and
+    // the buffers to deform meshes again.
+    let root_indices = roots.iter().map(|n| n.index()).collect();
+    let source = gltf_animation::GltfSource { document, buffers };
+    gltf_animation::attach(
+        path,
+        animations,
+        source,
+        root_indices,
+        world_from_file,
+        &mut world,
+        &mut warnings,
+    );
     Ok(Scene {
         world,
         defaults: SceneDefaults::default(),
@@ -1002,7 +1033,7 @@ fn instance_count(node: &gltf::Node, document: &gltf::Document) -> Option<usize>
 /// accessor types are those the extension allows: floats, normalized bytes and shorts for
 /// rotations, and with `KHR_mesh_quantization` bytes and shorts (normalized or not) for
 /// translations and scales.
-fn instance_transforms(
+pub(super) fn instance_transforms(
     node: &gltf::Node,
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],

@@ -7,6 +7,7 @@
 //! exporters do: a Blender export comes back in Blender's own coordinates.
 
 mod gltf;
+pub(crate) mod gltf_animation;
 mod gltf_check;
 mod gltf_deform;
 mod gltf_fix;
