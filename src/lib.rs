@@ -33,6 +33,7 @@ pub(crate) mod camera;
 pub mod error;
 pub mod film;
 pub(crate) mod flatten;
+pub mod frames;
 pub(crate) mod geometry;
 pub(crate) mod image_error;
 pub(crate) mod lights;

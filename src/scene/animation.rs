@@ -132,8 +132,8 @@ impl Keyframes {
                 let out_tangent0 = &self.values[(3 * k + 2) * w..(3 * k + 3) * w];
                 let in_tangent1 = &self.values[3 * next * w..(3 * next + 1) * w];
                 let (value0, value1) = (self.value(k), self.value(next));
-                for i in 0..w {
-                    out[i] = h_value0 * value0[i]
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = h_value0 * value0[i]
                         + h_out0 * out_tangent0[i]
                         + h_value1 * value1[i]
                         + h_in1 * in_tangent1[i];
