@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use wavetrace::Scene;
 use wavetrace::math::{Quat, Vec3};
-use wavetrace::scene::AnimationChoice;
 use wavetrace::scene::load::{UpAxis, import_model};
+use wavetrace::scene::{AnimationChoice, SharedMesh, Transform};
 
 const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 const FPS: f32 = 24.0;
@@ -402,4 +402,67 @@ fn bad_frame_flags_are_usage_errors_and_unknown_animations_fail() {
     }
     // Nothing was written.
     assert_eq!(files_in(dir.path()), ["move.gltf", "move.gltf.bin"]);
+}
+
+#[test]
+fn a_model_placed_by_a_scene_file_moves_under_its_placement() {
+    let dir = tempfile::tempdir().unwrap();
+    one_channel(
+        dir.path(),
+        "move.gltf",
+        "translation",
+        "LINEAR",
+        &[0.0, 1.0],
+        &[[0.0; 3], [2.0, 0.0, 0.0]],
+    );
+    // Placed twice: each copy keeps its own placement (a 90 degree turn about z, then
+    // a shift).
+    let toml = "include = [\"builtin:room\"]\n\
+        [[model]]\nfile = \"move.gltf\"\nup = \"z\"\nposition = [1.0, 2.0, 3.0]\n\
+        rotation = [0.0, 0.0, 90.0]\n\
+        [[model]]\nfile = \"move.gltf\"\nup = \"z\"\nposition = [-4.0, 0.0, 0.0]\n";
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, toml).unwrap();
+    let mut scene = wavetrace::load_scene(&path).unwrap_or_else(|e| panic!("loads: {e}"));
+    assert!(scene.is_animated());
+    // A model placed twice stores its mesh once (`SharedMesh`).
+    let origins = |scene: &mut Scene| {
+        let mut points = Vec::new();
+        let mut query = scene.world.query::<(&SharedMesh, &Transform)>();
+        for (mesh, transform) in query.iter() {
+            points.extend(
+                mesh.0
+                    .positions
+                    .iter()
+                    .map(|p| transform.0.transform_point3(*p)),
+            );
+        }
+        let mut found: Vec<Vec3> = points
+            .into_iter()
+            .filter(|p| {
+                [Vec3::new(1.0, 2.0, 3.0), Vec3::new(-4.0, 0.0, 0.0)]
+                    .iter()
+                    .any(|o| (*p - *o).length() < 2.5 && (p.z - o.z).abs() < 1e-4)
+            })
+            .collect();
+        found.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+        found
+    };
+    let rest = origins(&mut scene);
+    assert_eq!(rest.len(), 6, "{rest:?}");
+    scene.pose(&AnimationChoice::First, 0.5).unwrap();
+    let moved = origins(&mut scene);
+    // Copy one is turned: its +x motion of 1 is +y in the world; copy two moves along +x.
+    assert!(
+        moved
+            .iter()
+            .any(|p| (*p - Vec3::new(1.0, 3.0, 3.0)).length() < 1e-4),
+        "{moved:?}"
+    );
+    assert!(
+        moved
+            .iter()
+            .any(|p| (*p - Vec3::new(-3.0, 0.0, 0.0)).length() < 1e-4),
+        "{moved:?}"
+    );
 }
