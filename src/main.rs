@@ -540,51 +540,8 @@ fn render_frame(
         );
         return Ok(ExitCode::from(128 + signal as u8));
     }
-    let bar = match (args.quiet, time_budget) {
-        (true, _) => ProgressBar::hidden(),
-        (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
-        (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
-    };
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (ETA {eta})",
-        )
-        .expect("valid template"),
-    );
-    if verbose {
-        eprintln!(
-            "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
-            args.scene.display(),
-            settings.width,
-            settings.height,
-            describe_sampling(&settings, time_budget)
-        );
-    }
-    let start = Instant::now();
-    let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
-    let (film, stats) = render(&flat, &settings, |p| {
-        let pass_ended = p.pass_ended;
-        match &budget {
-            Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
-            None => {
-                bar.set_length(p.samples_total);
-                bar.set_position(p.samples_done);
-            }
-        }
-        if received(stop_signal).is_some() {
-            return Flow::Stop;
-        }
-        let out_of_time = match &mut budget {
-            Some(b) => pass_ended && !b.another_pass_fits(),
-            None => false,
-        };
-        if out_of_time {
-            Flow::Stop
-        } else {
-            Flow::Continue
-        }
-    })?;
-    bar.finish_and_clear();
+    let (film, stats) =
+        render_with_progress(args, &flat, &settings, time_budget, stop_signal, verbose)?;
 
     write_image(output, &film, args.exposure)?;
     if placement == Placement::AsIs
@@ -622,6 +579,64 @@ fn render_frame(
         }
         _ => ExitCode::SUCCESS,
     })
+}
+
+/// Renders `flat` with a progress bar (hidden with --quiet), stopping at a signal or at the
+/// end of the time budget.
+fn render_with_progress(
+    args: &RenderArgs,
+    flat: &wavetrace::RenderScene,
+    settings: &RenderSettings,
+    time_budget: Option<Duration>,
+    stop_signal: &AtomicI32,
+    verbose: bool,
+) -> Result<(wavetrace::Film, RenderStats)> {
+    let bar = match (args.quiet, time_budget) {
+        (true, _) => ProgressBar::hidden(),
+        (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
+        (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (ETA {eta})",
+        )
+        .expect("valid template"),
+    );
+    if verbose {
+        eprintln!(
+            "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
+            args.scene.display(),
+            settings.width,
+            settings.height,
+            describe_sampling(settings, time_budget)
+        );
+    }
+    let start = Instant::now();
+    let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
+    let rendered = render(flat, settings, |p| {
+        let pass_ended = p.pass_ended;
+        match &budget {
+            Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
+            None => {
+                bar.set_length(p.samples_total);
+                bar.set_position(p.samples_done);
+            }
+        }
+        if received(stop_signal).is_some() {
+            return Flow::Stop;
+        }
+        let out_of_time = match &mut budget {
+            Some(b) => pass_ended && !b.another_pass_fits(),
+            None => false,
+        };
+        if out_of_time {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        }
+    });
+    bar.finish_and_clear();
+    Ok(rendered?)
 }
 
 /// "16 spp", "adaptive (noise threshold 0.05, 16-1024 spp) for up to 1m", ...: how the
