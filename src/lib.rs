@@ -37,6 +37,7 @@ pub mod error;
 pub mod film;
 pub mod filter;
 pub(crate) mod flatten;
+pub mod frames;
 pub(crate) mod geometry;
 pub(crate) mod lights;
 pub mod math;

@@ -7,23 +7,25 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use signal_hook::consts::{SIGINT, SIGTERM};
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI32, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use wavetrace::film::{Image, Layer};
+use wavetrace::frames::{BLENDER_CURRENT_FRAME, DEFAULT_FPS, FrameRange, frame_path};
 use wavetrace::output::NamedLayer;
-use wavetrace::scene::EnvironmentSource;
 use wavetrace::scene::load::{
     EnvironmentOverrides, LightUnits, LoadOptions, Placement, UpAxis, dark_image_warning,
     is_model_file, load_scene_placed,
 };
+use wavetrace::scene::{AnimationChoice, EnvironmentSource};
 use wavetrace::settings::{
     Adaptive, DENOISED_MAX_SPP, DENOISED_NOISE_THRESHOLD, MAX_IMAGE_SIDE, MAX_SHADOW_RAYS,
 };
 use wavetrace::{
-    Film, Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image,
+    Film, Flow, RenderOverrides, RenderSettings, RenderStats, Scene, flatten, render, write_image,
 };
 
 #[derive(Parser)]
@@ -175,6 +177,26 @@ struct RenderArgs {
     /// mean; adaptive sampling only).
     #[arg(long, value_name = "LIST", value_delimiter = ',', value_enum)]
     aov: Vec<AovName>,
+    /// Pose the scene's animation at this frame (time FRAME / --fps). Default: frame 1, the
+    /// one Blender shows after importing a glTF file. A `#` run in -o is replaced by the
+    /// zero-padded frame number.
+    #[arg(long, conflicts_with = "frames")]
+    frame: Option<u32>,
+    /// Render the frames A to B (every STEPth): the scene is loaded once and posed for each.
+    /// The last `#` run of -o becomes the zero-padded frame number (f-####.png); without
+    /// one, the number is added before the extension (f.png -> f0001.png).
+    #[arg(long, value_name = "A-B[:STEP]", value_parser = FrameRange::parse)]
+    frames: Option<FrameRange>,
+    /// Frames per second of the animation's timeline (Blender's default 24).
+    #[arg(long, default_value_t = DEFAULT_FPS, value_parser = parse_fps)]
+    fps: f32,
+    /// The animation to play: its name, or its index in the file (default: the first).
+    #[arg(long, value_name = "NAME|INDEX")]
+    animation: Option<String>,
+    /// Skip a frame whose output file exists already (a retried farm task goes on where the
+    /// last attempt stopped).
+    #[arg(long)]
+    skip_existing: bool,
 }
 
 /// `--aov`: the layers the output can hold besides the colour.
@@ -207,6 +229,16 @@ impl AovName {
             AovName::Variance => ("variance", &["R", "G", "B"], Some(Layer::Variance)),
         }
     }
+}
+
+fn parse_fps(text: &str) -> std::result::Result<f32, String> {
+    let fps: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(fps.is_finite() && fps > 0.0 && fps <= 10_000.0) {
+        return Err(format!(
+            "frames per second must lie in (0, 10000], got {text}"
+        ));
+    }
+    Ok(fps)
 }
 
 /// `--env`: three comma-separated numbers are a colour, anything else a file.
@@ -495,7 +527,8 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         .output
         .clone()
         .unwrap_or_else(|| default_output(&args.scene));
-    let denoise = denoise_wanted(&args);
+    // Usage errors of the denoiser's flags, before anything is loaded.
+    denoise_wanted(&args);
     check_aov_output(&args, &output);
     let stop_signal = watch_stop_signals(&output)?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -529,180 +562,347 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
                 hidden: args.env_hidden,
             },
         };
-        let (scene, placement) = load_scene_placed(&args.scene, &options)?;
+        let (mut scene, placement) = load_scene_placed(&args.scene, &options)?;
         wavetrace::internals::trace_phase("loaded");
-        // Refuse an unwritable output before spending time on the render.
-        wavetrace::output::check_writable(&output)?;
-        let flat = flatten(&scene.world, &args.scene)?;
-        // The render reads only the render scene: the world's meshes (18 bytes a triangle
-        // at least) are freed before the render allocates its film and buffers.
-        drop(scene.world);
-        wavetrace::internals::trace_phase("flattened");
-        for warning in scene.warnings.iter().chain(flat.warnings()) {
-            eprintln!("warning: {warning}");
-        }
-        if !args.quiet {
-            eprintln!(
-                "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
-                flat.primitive_count(),
-                flat.flatten_times().bvh_build.as_secs_f64() * 1e3,
-                flat.flatten_times().total.as_secs_f64() * 1e3
-            );
-        }
-        let overrides = RenderOverrides {
-            width: args.width,
-            height: args.height,
-            spp: args.spp,
-            shadow_rays: args.shadow_rays,
-            mis: Some(!args.no_mis),
-            seed: Some(args.seed),
-            batch_size: Some(args.batch_size),
-            sampler: args.sampler.map(Into::into),
-            noise_threshold: args.noise_threshold,
-            min_spp: args.min_spp,
-            caustic_paths: args.caustic_paths,
-            filter: args.filter.map(Into::into),
-            filter_width: args.filter_width,
-        };
-        // A model file (often a Blender export) is reconstructed as Cycles does by default:
-        // Blackman-Harris of 1.5 px. Scene files keep the box of 1 px (docs/light-transport.md).
-        let mut scene_defaults = scene.defaults;
-        if placement != Placement::SceneFile {
-            scene_defaults.filter.get_or_insert(wavetrace::FilterKind::BlackmanHarris);
-        }
-        let mut settings =
-            RenderSettings::resolve(&scene_defaults, &overrides, flat.camera().aspect_ratio);
-        if args.time.is_some() && args.spp.is_none() {
-            // With a time budget and no sample count, the budget decides (and the noise
-            // threshold, if adaptive).
-            settings.spp = u32::MAX;
-        }
-        if denoise {
-            tune_for_denoiser(&args, scene.defaults.spp, &mut settings);
-        }
-        settings.record_aovs = denoise
-            || args.aov.iter().any(|a| {
-                matches!(a, AovName::Albedo | AovName::Normal | AovName::Depth)
-            });
-        if args.aov.contains(&AovName::Variance) && settings.adaptive.is_none() {
-            usage_error(
-                "--aov variance: the variance is estimated by adaptive sampling, which this \
-                 render does not use (drop --spp, or give --noise-threshold)"
-                    .into(),
-            );
-        }
-        settings.validate()?;
-        // A default render stops at the noise threshold, 1024 spp or a minute.
-        let time_budget = match (args.time, settings.adaptive, args.spp) {
-            (Some(budget), _, _) => Some(budget),
-            (None, Some(_), None) if scene.defaults.spp.is_none() => Some(ADAPTIVE_TIME_CAP),
-            _ => None,
-        };
+        render_frames(&args, &mut scene, placement, &output, &stop_signal)
+    })
+}
 
-        if let Some(signal) = received(&stop_signal) {
-            eprintln!("wavetrace: {} before rendering; no image written", signal_name(signal));
+/// Renders the frames the flags ask for (one image without --frames), each to its file: the
+/// scene loaded once, posed for each frame, then flattened (the BVH built) and rendered.
+fn render_frames(
+    args: &RenderArgs,
+    scene: &mut Scene,
+    placement: Placement,
+    output: &Path,
+    stop_signal: &AtomicI32,
+) -> Result<ExitCode> {
+    let animated = scene.is_animated();
+    let choice = args
+        .animation
+        .as_deref()
+        .map_or(AnimationChoice::First, AnimationChoice::parse);
+    if !animated && args.animation.is_some() {
+        anyhow::bail!(
+            "{}: --animation: the scene has no animations",
+            args.scene.display()
+        );
+    }
+    // (frame, its output file); `None` for a render without --frame or --frames.
+    let frames: Vec<(Option<u32>, PathBuf)> = match (args.frames, args.frame) {
+        (Some(range), _) => (range.frames())
+            .map(|f| (Some(f), frame_path(output, f, true)))
+            .collect(),
+        (None, Some(f)) => vec![(Some(f), frame_path(output, f, false))],
+        (None, None) => vec![(None, output.to_path_buf())],
+    };
+    let sequence = args.frames.is_some();
+    let mut said = HashSet::new();
+    if !animated && (args.frame.is_some() || sequence) {
+        say_once(
+            &mut said,
+            format!(
+                "{}: the scene has no animation; every frame is the same image",
+                args.scene.display()
+            ),
+        );
+    }
+    let count = frames.len();
+    for (i, (frame, frame_output)) in frames.into_iter().enumerate() {
+        if args.skip_existing && frame_output.exists() {
+            if !args.quiet {
+                eprintln!(
+                    "wavetrace: frame {} -> {} exists; skipped",
+                    frame.unwrap_or(BLENDER_CURRENT_FRAME),
+                    frame_output.display()
+                );
+            }
+            continue;
+        }
+        if let Some(signal) = received(stop_signal) {
+            eprintln!(
+                "wavetrace: {} before rendering; no image written",
+                signal_name(signal)
+            );
             return Ok(ExitCode::from(128 + signal as u8));
         }
-        let bar = match (args.quiet, time_budget) {
-            (true, _) => ProgressBar::hidden(),
-            (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
-            (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
-        };
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (ETA {eta})",
-            )
-            .expect("valid template"),
-        );
-        if !args.quiet {
-            eprintln!(
-                "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
-                args.scene.display(),
-                settings.width,
-                settings.height,
-                match (time_budget, settings.adaptive) {
-                    (Some(t), Some(a)) if settings.spp == u32::MAX => format!(
-                        "adaptive (noise threshold {}, at least {} spp) for up to {}",
-                        a.noise_threshold,
-                        a.min_spp,
-                        humantime::format_duration(t)
-                    ),
-                    (Some(t), Some(a)) => format!(
-                        "adaptive (noise threshold {}, {}-{} spp) for up to {}",
-                        a.noise_threshold,
-                        a.min_spp,
-                        settings.spp,
-                        humantime::format_duration(t)
-                    ),
-                    (None, Some(a)) => format!(
-                        "adaptive (noise threshold {}, {}-{} spp)",
-                        a.noise_threshold, a.min_spp, settings.spp
-                    ),
-                    (Some(t), None) if settings.spp == u32::MAX => format!("for {}", humantime::format_duration(t)),
-                    (Some(t), None) => format!("up to {} spp for {}", settings.spp, humantime::format_duration(t)),
-                    (None, None) => format!("{} spp", settings.spp),
-                }
-            );
+        if animated {
+            // Frame F is at F / fps seconds, as on Blender's timeline.
+            let frame = frame.unwrap_or(BLENDER_CURRENT_FRAME);
+            let seconds = (f64::from(frame) / f64::from(args.fps)) as f32;
+            for warning in scene.pose(&choice, seconds)? {
+                say_once(&mut said, warning);
+            }
         }
-        let start = Instant::now();
-        let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
-        let (film, stats) = render(&flat, &settings, |p| {
-            let pass_ended = p.pass_ended;
-            match &budget {
-                Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
-                None => {
-                    bar.set_length(p.samples_total);
-                    bar.set_position(p.samples_done);
-                }
-            }
-            if received(&stop_signal).is_some() {
-                return Flow::Stop;
-            }
-            let out_of_time = match &mut budget {
-                Some(b) => pass_ended && !b.another_pass_fits(),
-                None => false,
-            };
-            if out_of_time { Flow::Stop } else { Flow::Continue }
-        })?;
-        bar.finish_and_clear();
+        let job = FrameJob {
+            output: &frame_output,
+            frame: frame.filter(|_| sequence),
+            release_world: i + 1 == count,
+        };
+        let code = render_frame(args, scene, placement, &job, stop_signal, &mut said)?;
+        if code != ExitCode::SUCCESS {
+            return Ok(code);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
 
-        let written = if denoise || !args.aov.is_empty() {
-            write_output(&args, &output, &film, denoise)?
-        } else {
-            write_image(&output, &film, args.exposure)?;
-            film.resolve()
-        };
-        if placement == Placement::AsIs
-            && let Some(warning) = dark_image_warning(&written, args.exposure)
-        {
-            eprintln!("warning: {warning}");
-        }
-        if !args.quiet {
+/// Prints a warning unless it was printed before (a sequence says each thing once).
+fn say_once(said: &mut HashSet<String>, warning: String) {
+    if !said.contains(&warning) {
+        eprintln!("warning: {warning}");
+        said.insert(warning);
+    }
+}
+
+/// One image of [`render_frames`].
+struct FrameJob<'a> {
+    output: &'a Path,
+    /// The frame number of a sequence (whose frames print one summary line each).
+    frame: Option<u32>,
+    /// Whether the world may be freed once flattened (the last frame).
+    release_world: bool,
+}
+
+fn render_frame(
+    args: &RenderArgs,
+    scene: &mut Scene,
+    placement: Placement,
+    job: &FrameJob,
+    stop_signal: &AtomicI32,
+    said: &mut HashSet<String>,
+) -> Result<ExitCode> {
+    let output = job.output;
+    // Verbose output for a single image; a sequence prints one line per frame.
+    let verbose = !args.quiet && job.frame.is_none();
+    // Refuse an unwritable output before spending time on the render.
+    wavetrace::output::check_writable(output)?;
+    let flat = flatten(&scene.world, &args.scene)?;
+    if job.release_world {
+        // The render reads only the render scene: the world's meshes (18 bytes a triangle
+        // at least) are freed before the render allocates its film and buffers.
+        scene.world = hecs::World::new();
+    }
+    wavetrace::internals::trace_phase("flattened");
+    for warning in scene.warnings.iter().chain(flat.warnings()) {
+        say_once(said, warning.clone());
+    }
+    if verbose {
+        eprintln!(
+            "wavetrace: {} primitives, BVH built in {:.1} ms (the scene flattened in {:.1} ms)",
+            flat.primitive_count(),
+            flat.flatten_times().bvh_build.as_secs_f64() * 1e3,
+            flat.flatten_times().total.as_secs_f64() * 1e3
+        );
+    }
+    let denoise = denoise_wanted(args);
+    let (settings, time_budget) = frame_settings(args, scene, placement, &flat, denoise)?;
+
+    if let Some(signal) = received(stop_signal) {
+        eprintln!(
+            "wavetrace: {} before rendering; no image written",
+            signal_name(signal)
+        );
+        return Ok(ExitCode::from(128 + signal as u8));
+    }
+    let (film, stats) =
+        render_with_progress(args, &flat, &settings, time_budget, stop_signal, verbose)?;
+
+    let written = if denoise || !args.aov.is_empty() {
+        write_output(args, output, &film, denoise)?
+    } else {
+        write_image(output, &film, args.exposure)?;
+        film.resolve()
+    };
+    if placement == Placement::AsIs
+        && let Some(warning) = dark_image_warning(&written, args.exposure)
+    {
+        say_once(said, warning);
+    }
+    if !args.quiet {
+        eprintln!(
+            "wavetrace: {}{}x{}, {}, {} shadow rays, {} threads{} -> {}",
+            job.frame.map_or(String::new(), |f| format!("frame {f}: ")),
+            settings.width,
+            settings.height,
+            samples_held(&stats, settings.pixel_count()),
+            settings.shadow_rays,
+            rayon::current_num_threads(),
+            job.frame.map_or(String::new(), |_| format!(
+                ", {:.2} s",
+                stats.wall_time.as_secs_f64()
+            )),
+            output.display()
+        );
+    }
+    if verbose {
+        eprintln!("{}", stats.summary());
+    }
+    Ok(match received(stop_signal) {
+        Some(signal) if stats.interrupted => {
             eprintln!(
-                "wavetrace: {}x{}, {}, {} shadow rays, {} threads -> {}",
-                settings.width,
-                settings.height,
-                samples_held(&stats, settings.pixel_count()),
-                settings.shadow_rays,
-                rayon::current_num_threads(),
-                output.display()
+                "wavetrace: stopped early by {}; the image holds the samples finished so far ({})",
+                signal_name(signal),
+                samples_held(&stats, settings.pixel_count())
             );
+            ExitCode::from(128 + signal as u8)
         }
-        if !args.quiet {
-            eprintln!("{}", stats.summary());
-        }
-        Ok(match received(&stop_signal) {
-            Some(signal) if stats.interrupted => {
-                eprintln!(
-                    "wavetrace: stopped early by {}; the image holds the samples finished so far ({})",
-                    signal_name(signal),
-                    samples_held(&stats, settings.pixel_count())
-                );
-                ExitCode::from(128 + signal as u8)
-            }
-            _ => ExitCode::SUCCESS,
-        })
+        _ => ExitCode::SUCCESS,
     })
+}
+
+/// The settings of one frame (flags over the scene file's `[render]` over the defaults) and
+/// its time budget: a default render stops at the noise threshold, 1024 spp or a minute.
+fn frame_settings(
+    args: &RenderArgs,
+    scene: &Scene,
+    placement: Placement,
+    flat: &wavetrace::RenderScene,
+    denoise: bool,
+) -> Result<(RenderSettings, Option<Duration>)> {
+    let overrides = RenderOverrides {
+        width: args.width,
+        height: args.height,
+        spp: args.spp,
+        shadow_rays: args.shadow_rays,
+        mis: Some(!args.no_mis),
+        seed: Some(args.seed),
+        batch_size: Some(args.batch_size),
+        sampler: args.sampler.map(Into::into),
+        noise_threshold: args.noise_threshold,
+        min_spp: args.min_spp,
+        caustic_paths: args.caustic_paths,
+        filter: args.filter.map(Into::into),
+        filter_width: args.filter_width,
+    };
+    // A model file (often a Blender export) is reconstructed as Cycles does by default:
+    // Blackman-Harris of 1.5 px. Scene files keep the box of 1 px (docs/light-transport.md).
+    let mut scene_defaults = scene.defaults;
+    if placement != Placement::SceneFile {
+        scene_defaults
+            .filter
+            .get_or_insert(wavetrace::FilterKind::BlackmanHarris);
+    }
+    let mut settings =
+        RenderSettings::resolve(&scene_defaults, &overrides, flat.camera().aspect_ratio);
+    if args.time.is_some() && args.spp.is_none() {
+        // With a time budget and no sample count, the budget decides (and the noise
+        // threshold, if adaptive).
+        settings.spp = u32::MAX;
+    }
+    if denoise {
+        tune_for_denoiser(args, scene.defaults.spp, &mut settings);
+    }
+    settings.record_aovs = denoise
+        || args
+            .aov
+            .iter()
+            .any(|a| matches!(a, AovName::Albedo | AovName::Normal | AovName::Depth));
+    if args.aov.contains(&AovName::Variance) && settings.adaptive.is_none() {
+        usage_error(
+            "--aov variance: the variance is estimated by adaptive sampling, which this \
+             render does not use (drop --spp, or give --noise-threshold)"
+                .into(),
+        );
+    }
+    settings.validate()?;
+    let time_budget = match (args.time, settings.adaptive, args.spp) {
+        (Some(budget), _, _) => Some(budget),
+        (None, Some(_), None) if scene.defaults.spp.is_none() => Some(ADAPTIVE_TIME_CAP),
+        _ => None,
+    };
+    Ok((settings, time_budget))
+}
+
+/// Renders `flat` with a progress bar (hidden with --quiet), stopping at a signal or at the
+/// end of the time budget.
+fn render_with_progress(
+    args: &RenderArgs,
+    flat: &wavetrace::RenderScene,
+    settings: &RenderSettings,
+    time_budget: Option<Duration>,
+    stop_signal: &AtomicI32,
+    verbose: bool,
+) -> Result<(wavetrace::Film, RenderStats)> {
+    let bar = match (args.quiet, time_budget) {
+        (true, _) => ProgressBar::hidden(),
+        (false, Some(budget)) => ProgressBar::new(budget.as_millis() as u64),
+        (false, None) => ProgressBar::new(settings.pixel_count() * settings.spp as u64),
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {wide_bar} {percent}% (ETA {eta})",
+        )
+        .expect("valid template"),
+    );
+    if verbose {
+        eprintln!(
+            "wavetrace: rendering {} at {}x{}, {} (Ctrl-C stops and writes the image so far)",
+            args.scene.display(),
+            settings.width,
+            settings.height,
+            describe_sampling(settings, time_budget)
+        );
+    }
+    let start = Instant::now();
+    let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
+    let rendered = render(flat, settings, |p| {
+        let pass_ended = p.pass_ended;
+        match &budget {
+            Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
+            None => {
+                bar.set_length(p.samples_total);
+                bar.set_position(p.samples_done);
+            }
+        }
+        if received(stop_signal).is_some() {
+            return Flow::Stop;
+        }
+        let out_of_time = match &mut budget {
+            Some(b) => pass_ended && !b.another_pass_fits(),
+            None => false,
+        };
+        if out_of_time {
+            Flow::Stop
+        } else {
+            Flow::Continue
+        }
+    });
+    bar.finish_and_clear();
+    Ok(rendered?)
+}
+
+/// "16 spp", "adaptive (noise threshold 0.05, 16-1024 spp) for up to 1m", ...: how the
+/// render samples, for its opening line.
+fn describe_sampling(settings: &RenderSettings, time_budget: Option<Duration>) -> String {
+    match (time_budget, settings.adaptive) {
+        (Some(t), Some(a)) if settings.spp == u32::MAX => format!(
+            "adaptive (noise threshold {}, at least {} spp) for up to {}",
+            a.noise_threshold,
+            a.min_spp,
+            humantime::format_duration(t)
+        ),
+        (Some(t), Some(a)) => format!(
+            "adaptive (noise threshold {}, {}-{} spp) for up to {}",
+            a.noise_threshold,
+            a.min_spp,
+            settings.spp,
+            humantime::format_duration(t)
+        ),
+        (None, Some(a)) => format!(
+            "adaptive (noise threshold {}, {}-{} spp)",
+            a.noise_threshold, a.min_spp, settings.spp
+        ),
+        (Some(t), None) if settings.spp == u32::MAX => {
+            format!("for {}", humantime::format_duration(t))
+        }
+        (Some(t), None) => format!(
+            "up to {} spp for {}",
+            settings.spp,
+            humantime::format_duration(t)
+        ),
+        (None, None) => format!("{} spp", settings.spp),
+    }
 }
 
 /// The seed report's tables: (samples per pixel, shadow rays, seconds in the report).

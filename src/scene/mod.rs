@@ -5,9 +5,11 @@
 //! the world; `flatten` is the only reader of it on the render side (the loaders also read the
 //! worlds they build, to place imported models).
 
+pub mod animation;
 pub mod components;
 pub mod load;
 
+pub use animation::AnimationChoice;
 pub use components::{
     AlphaCoverage, AlphaMode, Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel,
     Material, MaterialTextures, Mesh, Name, PunctualLight, SharedMesh, Sphere, TextureSlot,

@@ -183,7 +183,11 @@ fn valid_files_the_strict_reader_refused_load() {
         ),
         1
     );
-    assert_eq!(warnings_with(&scene, "animations are ignored"), 1);
+    // The pointer channel plays like a translation channel, but its input is not scalar.
+    assert_eq!(
+        warnings_with(&scene, "channel 0: input accessor 1 is not SCALAR"),
+        1
+    );
 
     // The only scene has no nodes: an empty model, not an error.
     let mut doc = GltfDoc::default();

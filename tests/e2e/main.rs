@@ -10,6 +10,7 @@
 
 mod adaptive;
 mod alpha;
+mod animation;
 mod caustics;
 mod cli;
 mod cli_errors;

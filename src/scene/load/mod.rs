@@ -17,6 +17,7 @@
 //! - this file: [`load_scene`] and its options, the command line's environment flags.
 
 mod gltf;
+pub(crate) use gltf::animation as gltf_animation; // posing reads the rig (scene/animation.rs)
 mod image_decode;
 mod model;
 mod obj;

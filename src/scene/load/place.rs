@@ -9,6 +9,7 @@ use super::shared::Scene;
 use crate::error::{Error, Result};
 use crate::film::Image;
 use crate::math::{Affine3A, Vec3, luminance};
+use crate::scene::animation::Animated;
 use crate::scene::{
     AlphaCoverage, Camera, Emitter, EnvironmentLight, Material, MaterialTextures, Mesh, Name,
     PunctualLight, SharedMesh, Sphere, Transform, VertexColors, VertexTangents, Volume, mesh_of,
@@ -347,6 +348,7 @@ pub(super) fn copy_model(model: &hecs::World) -> hecs::World {
             PunctualLight,
             Camera,
             EnvironmentLight,
+            Animated,
         );
         debug_assert_eq!(
             copied,
@@ -377,6 +379,10 @@ pub(super) fn merge_model(
     }
     for t in model.query_mut::<&mut Transform>() {
         t.0 = placement * t.0;
+    }
+    // Posing recomputes the transforms: it must know the placement too.
+    for animated in model.query_mut::<&mut Animated>() {
+        animated.place(placement);
     }
     let unplaced: Vec<hecs::Entity> = model
         .query::<(hecs::Entity, hecs::Or<&Mesh, &SharedMesh>)>()

@@ -1,6 +1,6 @@
-//! Deformations glTF applies to a mesh before it is drawn, in the pose the file holds (no
-//! animation is played): morph targets blended with the node's default `weights` (else the
-//! mesh's), and linear-blend skinning by the joints' node transforms.
+//! Deformations glTF applies to a mesh before it is drawn, in the pose the file holds (or,
+//! called by `animation.rs`, an animated pose): morph targets blended with the node's
+//! `weights` (else the mesh's), and linear-blend skinning by the joints' node transforms.
 //!
 //! A skinned primitive comes out in world space: the glTF specification says the skinned
 //! mesh's own node transform is ignored and only the joints' transforms apply, so its entity

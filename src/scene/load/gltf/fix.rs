@@ -4,8 +4,8 @@
 //!
 //! Patches (the file stays valid glTF; only data wavetrace does not use is dropped): a scene
 //! without `nodes` gets an empty list; animations (including `KHR_animation_pointer` channels,
-//! which have no `node`) are removed with a warning, and so are morph targets that name an
-//! accessor the file does not have; application-specific
+//! which have no `node`) are removed (`animation.rs` reads them on its own); morph targets
+//! that name an accessor the file does not have are removed with a warning; application-specific
 //! attributes (`_PRESSURE`, any name starting with `_`) are removed with a warning; a primitive
 //! that names an accessor the file does not have is removed with a warning; a texture's image is
 //! chosen among its sources (`EXT_texture_webp`, the core `source`, `KHR_texture_basisu`).
@@ -92,15 +92,10 @@ fn patch(path: &Path, root: &mut Value, warnings: &mut Vec<String>) {
         }
     }
     let object = root.as_object_mut().expect("checked by the caller");
-    if let Some(animations) = object.remove("animations") {
-        let n = array_len(&animations);
-        if n > 0 {
-            warnings.push(format!(
-                "{file}: animations are ignored; the scene is shown at rest ({n} animation{})",
-                plural(n)
-            ));
-        }
-    }
+    // Animation hook: the strict reader refuses valid animations (pointer channels have no
+    // node) and a malformed one would refuse the file; `animation.rs` reads them from the
+    // JSON instead, channel by channel, and warns about what it skips.
+    object.remove("animations");
     let accessor_count = object.get("accessors").map_or(0, array_len);
     let mut app_attributes = BTreeMap::<String, usize>::new();
     let mut bad_targets = 0usize;
@@ -391,7 +386,7 @@ mod tests {
     }
 
     #[test]
-    fn pointer_animations_are_dropped_with_one_warning() {
+    fn animations_are_left_to_the_animation_reader() {
         let (root, warnings) = parse(
             r#"{"asset": {"version": "2.0"},
                 "animations": [{"channels": [{"sampler": 0, "target": {"path": "pointer",
@@ -399,10 +394,7 @@ mod tests {
                   "samplers": [{"input": 0, "output": 0}]}, {"channels": [], "samplers": []}]}"#,
         );
         assert!(root.animations.is_empty());
-        assert_eq!(
-            warnings,
-            ["m.gltf: animations are ignored; the scene is shown at rest (2 animations)"]
-        );
+        assert!(warnings.is_empty(), "{warnings:?}");
     }
 
     #[test]

@@ -10,7 +10,7 @@ use crate::scene::{Camera, Name, PunctualLight, Transform};
 use gltf::khr_lights_punctual::Kind as LightKind;
 use std::path::Path;
 
-/// Spawns the node's camera, if it has one that can be rendered from.
+/// Spawns the node's camera, if it has one that can be rendered from, and returns its entity.
 pub(super) fn spawn_camera(
     world: &mut hecs::World,
     node: &gltf::Node,
@@ -18,21 +18,26 @@ pub(super) fn spawn_camera(
     world_from_node: Affine3A,
     path: &Path,
     warnings: &mut Vec<String>,
-) -> Result<()> {
+) -> Result<Option<hecs::Entity>> {
     let Some(camera) = node.camera() else {
-        return Ok(());
+        return Ok(None);
     };
     match camera.projection() {
         gltf::camera::Projection::Perspective(p) => {
             check_perspective(&p)
                 .map_err(|message| Error::input(path, Some(node_location(node)), message))?;
-            world.spawn((Name(name.to_string()), camera_of(&world_from_node, &p)));
+            Ok(Some(world.spawn((
+                Name(name.to_string()),
+                camera_of(&world_from_node, &p),
+            ))))
         }
-        gltf::camera::Projection::Orthographic(_) => warnings.push(format!(
-            "camera '{name}': orthographic cameras are not supported; skipped"
-        )),
+        gltf::camera::Projection::Orthographic(_) => {
+            warnings.push(format!(
+                "camera '{name}': orthographic cameras are not supported; skipped"
+            ));
+            Ok(None)
+        }
     }
-    Ok(())
 }
 
 /// A glTF camera (looking down its node's -Z with +Y up) in world space.
@@ -52,17 +57,17 @@ fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camer
     }
 }
 
-/// Spawns the node's light, if it has one; its colour times intensity must be finite and
-/// non-negative.
+/// Spawns the node's light, if it has one, and returns its entity; its colour times intensity
+/// must be finite and non-negative.
 pub(super) fn spawn_light(
     world: &mut hecs::World,
     node: &gltf::Node,
     name: &str,
     world_from_node: Affine3A,
     path: &Path,
-) -> Result<()> {
+) -> Result<Option<hecs::Entity>> {
     let Some(light) = node.light() else {
-        return Ok(());
+        return Ok(None);
     };
     let colour = Rgb::from(light.color()) * light.intensity();
     let punctual = match light.kind() {
@@ -84,6 +89,9 @@ pub(super) fn spawn_light(
             "light colour and intensity must be finite and non-negative",
         ));
     }
-    world.spawn((Name(name.to_string()), Transform(world_from_node), punctual));
-    Ok(())
+    Ok(Some(world.spawn((
+        Name(name.to_string()),
+        Transform(world_from_node),
+        punctual,
+    ))))
 }

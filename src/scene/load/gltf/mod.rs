@@ -16,6 +16,7 @@
 //!    spawns cameras and lights (`lights_cameras.rs`).
 
 mod accessors;
+pub(crate) mod animation;
 mod check;
 mod deform;
 mod fix;
@@ -36,7 +37,7 @@ use std::path::Path;
 /// Loads a glTF file into a new world.
 pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     let mut warnings = Vec::new();
-    let (json, blob) = read_json(path, &mut warnings)?;
+    let (json, blob, animations) = read_json(path, &mut warnings)?;
     let (document, buffers) = open_document(path, json, blob, &mut warnings)?;
     fix::survey(path, &document, &mut warnings);
     let base = path.parent().unwrap_or(Path::new("."));
@@ -50,8 +51,21 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
         document: &document,
         buffers: &buffers,
         materials: &materials,
+        animations: &animations,
     };
-    let world = nodes::spawn_nodes(&parts, up, &mut warnings)?;
+    let (mut world, root_indices) = nodes::spawn_nodes(&parts, up, &mut warnings)?;
+    // The entities bound to animated nodes get the file's rig, which keeps the document and
+    // the buffers to deform meshes again for each pose.
+    let source = animation::GltfSource { document, buffers };
+    animation::attach(
+        path,
+        animations,
+        source,
+        root_indices,
+        up.world_from_file(),
+        &mut world,
+        &mut warnings,
+    );
     Ok(Scene {
         world,
         defaults: SceneDefaults::default(),
@@ -64,7 +78,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
 fn read_json(
     path: &Path,
     warnings: &mut Vec<String>,
-) -> Result<(gltf::json::Root, Option<Vec<u8>>)> {
+) -> Result<(gltf::json::Root, Option<Vec<u8>>, Option<serde_json::Value>)> {
     // Running out of memory while loading is refused with an error, not an allocation abort:
     // the file, its buffers and its meshes are each checked before they are read.
     memory::check_file(path)?;
@@ -82,6 +96,9 @@ fn read_json(
     } else {
         (fix::parse_root(path, &bytes, false, warnings)?, None)
     };
+    // `fix.rs` drops the animations before the strict reader; they are read from the JSON
+    // here, channel by channel (`animation.rs`).
+    let animations = animation::read_animations(&bytes);
     // The BIN chunk was copied out: the file's bytes are not kept while the buffers load.
     drop(bytes);
     crate::memory::trace_phase("read");
@@ -102,7 +119,7 @@ fn read_json(
     if let Some(message) = accessors::draco_without_fallback(&json) {
         return Err(Error::input(path, None, message));
     }
-    Ok((json, blob))
+    Ok((json, blob, animations))
 }
 
 /// The validated document and its buffers (meshopt-compressed views decoded), with every

@@ -7,6 +7,7 @@
 //! with nothing to render is an error.
 
 use super::accessors::read_floats;
+use super::animation::{self, Placed};
 use super::check::node_location;
 use super::deform::{self, Deform};
 use super::lights_cameras::{spawn_camera, spawn_light};
@@ -35,6 +36,9 @@ pub(super) struct Parts<'a> {
     pub(super) buffers: &'a [gltf::buffer::Data],
     /// The file's materials, by index.
     pub(super) materials: &'a [ImportedMaterial],
+    /// The file's animations as JSON (`animation.rs`), when it has any: the entities of
+    /// animated files record the node that placed them.
+    pub(super) animations: &'a Option<serde_json::Value>,
 }
 
 /// The walk's state: the world it fills and what it has read, warned and counted.
@@ -62,14 +66,16 @@ struct NodeWalk<'a> {
     first_skip: Option<String>,
 }
 
-/// Spawns the entities of the scene's nodes into a new world.
+/// Spawns the entities of the scene's nodes into a new world; also returns the indices of
+/// the scene's root nodes (for posing animations).
 pub(super) fn spawn_nodes(
     parts: &Parts,
     up: UpAxis,
     warnings: &mut Vec<String>,
-) -> Result<hecs::World> {
+) -> Result<(hecs::World, Vec<usize>)> {
     let (path, document) = (parts.path, parts.document);
     let roots = scene_roots(document, path, warnings)?;
+    let root_indices = roots.iter().map(|n| n.index()).collect();
     let world_from_file = up.world_from_file();
     let node_count = document.nodes().len();
     let default_material = ImportedMaterial::blender_default();
@@ -123,7 +129,7 @@ pub(super) fn spawn_nodes(
         if let Some(mesh) = node.mesh() {
             walk.spawn_mesh(&node, &mesh, world_from_node, &name);
         }
-        spawn_camera(
+        let camera = spawn_camera(
             &mut walk.world,
             &node,
             &name,
@@ -131,13 +137,30 @@ pub(super) fn spawn_nodes(
             path,
             walk.warnings,
         )?;
-        spawn_light(&mut walk.world, &node, &name, world_from_node, path)?;
+        if let Some(entity) = camera {
+            animation::bind(
+                &mut walk.world,
+                entity,
+                parts.animations,
+                node.index(),
+                Placed::Camera,
+            );
+        }
+        if let Some(entity) = spawn_light(&mut walk.world, &node, &name, world_from_node, path)? {
+            animation::bind(
+                &mut walk.world,
+                entity,
+                parts.animations,
+                node.index(),
+                Placed::Light,
+            );
+        }
         let children: Vec<_> = node.children().collect();
         for child in children.into_iter().rev() {
             stack.push((child, world_from_node, depth + 1));
         }
     }
-    walk.finish()
+    Ok((walk.finish()?, root_indices))
 }
 
 /// How many times each mesh is drawn (nodes and GPU instances): a mesh drawn more than once
@@ -183,7 +206,27 @@ impl NodeWalk<'_> {
                 continue;
             };
             self.primitives_read += 1;
-            spawn_primitive(&mut self.world, name, imported, read, &placements, shared);
+            let entities =
+                spawn_primitive(&mut self.world, name, imported, read, &placements, shared);
+            if self.parts.animations.is_some() {
+                let instanced =
+                    deform.joints.is_none() && node.extension_value(GPU_INSTANCING).is_some();
+                for (instance, entity) in entities.into_iter().enumerate() {
+                    let placed = Placed::Mesh {
+                        mesh: mesh.index(),
+                        primitive: primitive.index(),
+                        instance: instanced.then_some(instance),
+                        skinned: deform.joints.is_some(),
+                    };
+                    animation::bind(
+                        &mut self.world,
+                        entity,
+                        self.parts.animations,
+                        node.index(),
+                        placed,
+                    );
+                }
+            }
         }
     }
 
@@ -310,9 +353,9 @@ impl NodeWalk<'_> {
     }
 }
 
-/// Spawns the entities of one read primitive, one per placement. A mesh used once stays a
-/// plain `Mesh` (the common case, which every reader of the world knows); a shared one is
-/// stored once.
+/// Spawns the entities of one read primitive, one per placement (returned in placement
+/// order). A mesh used once stays a plain `Mesh` (the common case, which every reader of the
+/// world knows); a shared one is stored once.
 fn spawn_primitive(
     world: &mut hecs::World,
     name: &str,
@@ -320,7 +363,8 @@ fn spawn_primitive(
     (mesh_data, tangents, colors): SharedRead,
     placements: &[Affine3A],
     shared: bool,
-) {
+) -> Vec<hecs::Entity> {
+    let mut entities = Vec::with_capacity(placements.len());
     let (mut plain, shared_data) = if shared {
         (None, Some(mesh_data))
     } else {
@@ -360,7 +404,9 @@ fn spawn_primitive(
         if let Some(v) = imported.volume {
             world.insert_one(entity, v).expect("just spawned");
         }
+        entities.push(entity);
     }
+    entities
 }
 
 /// The root nodes to render: the default scene's (or the first scene's). A file without
@@ -422,7 +468,7 @@ fn instance_count(node: &gltf::Node, document: &gltf::Document) -> Option<usize>
 /// accessor types are those the extension allows: floats, normalized bytes and shorts for
 /// rotations, and with `KHR_mesh_quantization` bytes and shorts (normalized or not) for
 /// translations and scales.
-fn instance_transforms(
+pub(super) fn instance_transforms(
     node: &gltf::Node,
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
