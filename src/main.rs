@@ -18,7 +18,12 @@ use wavetrace::scene::load::{
     is_model_file, load_scene_placed,
 };
 use wavetrace::settings::{MAX_IMAGE_SIDE, MAX_SHADOW_RAYS};
-use wavetrace::{Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, write_image};
+use wavetrace::{
+    Film, Flow, RenderOverrides, RenderSettings, RenderStats, flatten, render, render_rows,
+    write_image,
+};
+
+mod farm_cli;
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -31,9 +36,40 @@ struct Cli {
 enum Command {
     /// Render a scene file (.toml) or a model (.gltf, .glb, .obj) to a PNG or OpenEXR image.
     Render(Box<RenderArgs>),
+    /// Merge the part files of one frame (`render --part K/N`), in any order, into the image
+    /// the whole render would have written, byte for byte.
+    Merge(MergeArgs),
+    /// Render on a Slurm cluster: `wavetrace slurm SCENE [render flags] (--parts N | --frames
+    /// A-B[:STEP] [--frames-per-task M]) -o OUT [--sbatch ARG]... [--wait]`. Submits a job
+    /// array (one task per part, then a merge job; or one task per chunk of frames), prints
+    /// the job ids; --wait blocks until the last job ends and fails if one did. Scripts, logs
+    /// and parts go to the folder OUT.slurm next to OUT. See docs/farm.md.
+    #[command(disable_help_flag = true)]
+    Slurm(SlurmArgs),
     /// Reproduce the seed report's benchmark tables on the built-in room and print them next
     /// to the report's seconds.
     BenchSeed(BenchSeedArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// The part files (`render --part K/N -o FILE`), every part exactly once, any order.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output image; the extension picks the format (.png: sRGB 8-bit; .exr: linear float).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Print nothing on success but warnings.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct SlurmArgs {
+    /// SCENE, render flags and the slurm flags, in any order after SCENE (see `wavetrace help
+    /// slurm`).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    args: Vec<String>,
 }
 
 #[derive(Args)]
@@ -133,6 +169,11 @@ struct RenderArgs {
     /// Print nothing on success but warnings: no progress bar, no summary.
     #[arg(short, long)]
     quiet: bool,
+    /// Render only part K (0-based) of N of the frame, a band of rows, into -o FILE: a partial
+    /// film for `wavetrace merge` (see docs/farm.md). Needs a fixed stop (--spp, or the
+    /// scene's spp), not a time budget.
+    #[arg(long, value_name = "K/N", conflicts_with = "time")]
+    part: Option<wavetrace::farm::PartIndex>,
     /// Light the scene from infinity: an equirectangular .hdr/.exr map, or a constant colour
     /// R,G,B (replaces the scene's [environment]; a model file renders under it, not in the room).
     #[arg(long, value_name = "FILE|R,G,B", value_parser = parse_environment)]
@@ -225,6 +266,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(*args),
+        Command::Merge(args) => run_merge(args).map(|()| ExitCode::SUCCESS),
+        Command::Slurm(args) => farm_cli::run_slurm(args.args),
         Command::BenchSeed(args) => run_bench_seed(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
@@ -341,7 +384,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         let (scene, placement) = load_scene_placed(&args.scene, &options)?;
         wavetrace::internals::trace_phase("loaded");
         // Refuse an unwritable output before spending time on the render.
-        wavetrace::output::check_writable(&output)?;
+        match args.part {
+            Some(_) => wavetrace::farm::parts::check_part_writable(&output)?,
+            None => wavetrace::output::check_writable(&output)?,
+        }
         let flat = flatten(&scene.world, &args.scene)?;
         // The render reads only the render scene: the world's meshes (18 bytes a triangle
         // at least) are freed before the render allocates its film and buffers.
@@ -385,6 +431,11 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             (None, Some(_), None) if scene.defaults.spp.is_none() => Some(ADAPTIVE_TIME_CAP),
             _ => None,
         };
+        let part = match args.part {
+            Some(part) => Some(farm_cli::PartRender::new(part, &args, &options, &settings, time_budget)?),
+            None => None,
+        };
+        let rows = part.as_ref().map_or(0..settings.height, |p| p.rows.clone());
 
         if let Some(signal) = received(&stop_signal) {
             eprintln!("wavetrace: {} before rendering; no image written", signal_name(signal));
@@ -433,7 +484,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         }
         let start = Instant::now();
         let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
-        let (film, stats) = render(&flat, &settings, |p| {
+        let (film, stats) = render_rows(&flat, &settings, rows, |p| {
             let pass_ended = p.pass_ended;
             match &budget {
                 Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),
@@ -453,7 +504,10 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         })?;
         bar.finish_and_clear();
 
-        write_image(&output, &film, args.exposure)?;
+        if let Some(part) = &part {
+            return part.finish(&output, &film, &stats, received(&stop_signal), args.quiet);
+        }
+        write_output(&output, &film, args.exposure)?;
         if placement == Placement::AsIs
             && let Some(warning) = dark_image_warning(&film.resolve(), args.exposure)
         {
@@ -485,6 +539,30 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
             _ => ExitCode::SUCCESS,
         })
     })
+}
+
+/// Writes the film as the output image: the render and the merge of a frame's parts end
+/// here, so that both write the same bytes from the same film.
+fn write_output(output: &Path, film: &Film, exposure: f32) -> Result<()> {
+    write_image(output, film, exposure)?;
+    Ok(())
+}
+
+/// `wavetrace merge`: the parts' film, checked whole, written as the render would.
+fn run_merge(args: MergeArgs) -> Result<()> {
+    wavetrace::output::check_writable(&args.output)?;
+    let merged = wavetrace::farm::merge_parts(&args.parts)?;
+    write_output(&args.output, &merged.film, merged.exposure)?;
+    if !args.quiet {
+        eprintln!(
+            "wavetrace: merged {} parts of {}x{} -> {}",
+            args.parts.len(),
+            merged.film.width,
+            merged.film.height,
+            args.output.display()
+        );
+    }
+    Ok(())
 }
 
 /// The seed report's tables: (samples per pixel, shadow rays, seconds in the report).

@@ -19,6 +19,7 @@ mod cornell;
 mod deform;
 mod determinism;
 mod environment;
+mod farm;
 mod furnace;
 mod fuzz_regressions;
 mod geometry_import;
