@@ -269,7 +269,7 @@ fn sbatch(args: &[String], script: &Path) -> Result<String, SlurmError> {
             "sbatch refused {} ({}): {}",
             script.display(),
             output.status,
-            stderr.trim()
+            stderr.trim().lines().collect::<Vec<_>>().join("; ")
         )));
     }
     Ok(id)
@@ -380,7 +380,11 @@ pub fn wait(submission: &Submission, jobs: &SubmittedJobs) -> Result<(), SlurmEr
             failed.exit_code,
             log.display(),
             match &jobs.merge {
-                Some(merge) => format!("; merge job {merge} will not run"),
+                Some(merge) => {
+                    // Slurm would cancel it too (--kill-on-invalid-dep), at its next look.
+                    let _ = Command::new("scancel").arg(merge).output();
+                    format!("; merge job {merge} cancelled")
+                }
                 None => String::new(),
             }
         )));
