@@ -115,7 +115,7 @@ fn bad_part_flags_are_usage_errors_or_clear_errors_and_write_nothing() {
         run(&args)
     };
     for bad in ["4/4", "0/0", "x", "1/", "-1/2"] {
-        let out = render(&["--spp", "1", "--part", bad]);
+        let out = render(&["--spp", "1", &format!("--part={bad}")]);
         check_failure(&out, 2, &["--part"]).unwrap();
     }
     check_failure(&render(&["--time", "1s", "--part", "0/2"]), 2, &["--time"]).unwrap();
