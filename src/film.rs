@@ -217,12 +217,40 @@ impl Film {
         self.samples[index]
     }
 
-    /// Fewest, mean and most samples per pixel.
-    pub fn spp_range(&self) -> (u32, f64, u32) {
-        let total: u64 = self.samples.iter().map(|&n| n as u64).sum();
-        let mean = total as f64 / self.samples.len().max(1) as f64;
-        let max = self.samples.iter().copied().max().unwrap_or(0);
-        (self.min_samples(), mean, max)
+    /// Fewest, mean and most samples per pixel among the pixels `pixels`.
+    pub fn spp_range(&self, pixels: Range<u32>) -> (u32, f64, u32) {
+        let samples = &self.samples[pixels.start as usize..pixels.end as usize];
+        let total: u64 = samples.iter().map(|&n| n as u64).sum();
+        let mean = total as f64 / samples.len().max(1) as f64;
+        let min = samples.iter().copied().min().unwrap_or(0);
+        let max = samples.iter().copied().max().unwrap_or(0);
+        (min, mean, max)
+    }
+
+    /// Whether the film keeps the sums of odd-numbered samples (adaptive sampling's error
+    /// estimate).
+    pub fn has_error_estimate(&self) -> bool {
+        !self.odd_sum.is_empty()
+    }
+
+    /// The raw accumulators of the pixel of row-major index `index`, exactly as the film
+    /// holds them (for a partial film written to a file and merged, [`crate::farm`]).
+    pub fn accumulator(&self, index: usize) -> PixelAccumulator {
+        PixelAccumulator {
+            sum: self.sum[index],
+            odd_sum: self.odd_sum.get(index).copied().unwrap_or([0.0; 3]),
+            samples: self.samples[index],
+        }
+    }
+
+    /// Sets the raw accumulators of a pixel, as [`Film::accumulator`] read them (the odd sum
+    /// is dropped by a film without the error estimate).
+    pub fn set_accumulator(&mut self, index: usize, accumulator: PixelAccumulator) {
+        self.sum[index] = accumulator.sum;
+        if let Some(odd_sum) = self.odd_sum.get_mut(index) {
+            *odd_sum = accumulator.odd_sum;
+        }
+        self.samples[index] = accumulator.samples;
     }
 
     /// The pixels `pixels` cut into consecutive regions of `size` pixels (the last may be
@@ -285,6 +313,17 @@ fn optional_chunks<T>(
     } else {
         column[range].chunks_mut(size).collect()
     }
+}
+
+/// One pixel's accumulators in a [`Film`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelAccumulator {
+    /// Sum of the pixel's samples.
+    pub sum: [f64; 3],
+    /// Sum of its odd-numbered samples (zero in a film without the error estimate).
+    pub odd_sum: [f64; 3],
+    /// Samples taken.
+    pub samples: u32,
 }
 
 /// A run of consecutive pixels of a [`Film`], borrowed to add samples to them: the regions
@@ -448,7 +487,7 @@ mod tests {
         assert!((film.pixel_error(1) as f64 - expected).abs() < 1e-6);
         assert!(film.pixel_error(2) > 0.0 && film.pixel_error(2) < film.pixel_error(1));
         assert_eq!(Film::new(1, 1).pixel_error(0), f32::INFINITY);
-        assert_eq!(film.spp_range(), (64, 64.0, 64));
+        assert_eq!(film.spp_range(0..3), (64, 64.0, 64));
     }
 
     #[test]

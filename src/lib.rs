@@ -34,6 +34,7 @@ pub(crate) mod bsdf;
 pub(crate) mod camera;
 pub mod denoise;
 pub mod error;
+pub mod farm;
 pub mod film;
 pub mod filter;
 pub(crate) mod flatten;
@@ -58,7 +59,7 @@ pub use render_scene::{FlattenTimes, RenderScene};
 pub use scene::{Scene, load_scene};
 pub use settings::{RenderOverrides, RenderSettings};
 pub use wavefront::stats::RenderStats;
-pub use wavefront::{Flow, Progress, render};
+pub use wavefront::{Flow, Progress, render, render_rows};
 
 /// The renderer's internals, for the stage benchmarks, the examples and the end-to-end tests
 /// only. **Unstable**: anything here may change or go away without notice; programs use the

@@ -25,8 +25,11 @@ use wavetrace::settings::{
     Adaptive, DENOISED_MAX_SPP, DENOISED_NOISE_THRESHOLD, MAX_IMAGE_SIDE, MAX_SHADOW_RAYS,
 };
 use wavetrace::{
-    Film, Flow, RenderOverrides, RenderSettings, RenderStats, Scene, flatten, render, write_image,
+    Film, Flow, RenderOverrides, RenderSettings, RenderStats, Scene, flatten, render, render_rows,
+    write_image,
 };
+
+mod farm_cli;
 
 #[derive(Parser)]
 #[command(version, about = "A physically based Monte Carlo path tracer")]
@@ -39,9 +42,40 @@ struct Cli {
 enum Command {
     /// Render a scene file (.toml) or a model (.gltf, .glb, .obj) to a PNG or OpenEXR image.
     Render(Box<RenderArgs>),
+    /// Merge the part files of one frame (`render --part K/N`), in any order, into the image
+    /// the whole render would have written, byte for byte.
+    Merge(MergeArgs),
+    /// Render on a Slurm cluster: `wavetrace slurm SCENE [render flags] (--parts N | --frames
+    /// A-B[:STEP] [--frames-per-task M]) -o OUT [--sbatch ARG]... [--wait]`. Submits a job
+    /// array (one task per part, then a merge job; or one task per chunk of frames), prints
+    /// the job ids; --wait blocks until the last job ends and fails if one did. Scripts, logs
+    /// and parts go to the folder OUT.slurm next to OUT. See docs/farm.md.
+    #[command(disable_help_flag = true)]
+    Slurm(SlurmArgs),
     /// Reproduce the seed report's benchmark tables on the built-in room and print them next
     /// to the report's seconds.
     BenchSeed(BenchSeedArgs),
+}
+
+#[derive(Args)]
+struct MergeArgs {
+    /// The part files (`render --part K/N -o FILE`), every part exactly once, any order.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output image; the extension picks the format (.png: sRGB 8-bit; .exr: linear float).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Print nothing on success but warnings.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+#[derive(Args)]
+struct SlurmArgs {
+    /// SCENE, render flags and the slurm flags, in any order after SCENE (see `wavetrace help
+    /// slurm`).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, num_args = 0..)]
+    args: Vec<String>,
 }
 
 #[derive(Args)]
@@ -150,6 +184,11 @@ struct RenderArgs {
     /// Print nothing on success but warnings: no progress bar, no summary.
     #[arg(short, long)]
     quiet: bool,
+    /// Render only part K (0-based) of N of the frame, a band of rows, into -o FILE: a partial
+    /// film for `wavetrace merge` (see docs/farm.md). Needs a fixed stop (--spp, or the
+    /// scene's spp), not a time budget.
+    #[arg(long, value_name = "K/N", conflicts_with_all = ["time", "frames"])]
+    part: Option<wavetrace::farm::PartIndex>,
     /// Light the scene from infinity: an equirectangular .hdr/.exr map, or a constant colour
     /// R,G,B (replaces the scene's [environment]; a model file renders under it, not in the room).
     #[arg(long, value_name = "FILE|R,G,B", value_parser = parse_environment)]
@@ -345,6 +384,8 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => run_render(*args),
+        Command::Merge(args) => run_merge(args).map(|()| ExitCode::SUCCESS),
+        Command::Slurm(args) => farm_cli::run_slurm(args.args),
         Command::BenchSeed(args) => run_bench_seed(args).map(|()| ExitCode::SUCCESS),
     };
     match result {
@@ -522,6 +563,23 @@ fn write_output(args: &RenderArgs, output: &Path, film: &Film, denoise: bool) ->
     Ok(color)
 }
 
+/// `wavetrace merge`: the parts' film, checked whole, written as the render writes it.
+fn run_merge(args: MergeArgs) -> Result<()> {
+    wavetrace::output::check_writable(&args.output)?;
+    let merged = wavetrace::farm::merge_parts(&args.parts)?;
+    write_image(&args.output, &merged.film, merged.exposure)?;
+    if !args.quiet {
+        eprintln!(
+            "wavetrace: merged {} parts of {}x{} -> {}",
+            args.parts.len(),
+            merged.film.width,
+            merged.film.height,
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
 fn run_render(args: RenderArgs) -> Result<ExitCode> {
     let output = args
         .output
@@ -564,7 +622,14 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
         };
         let (mut scene, placement) = load_scene_placed(&args.scene, &options)?;
         wavetrace::internals::trace_phase("loaded");
-        render_frames(&args, &mut scene, placement, &output, &stop_signal)
+        render_frames(
+            &args,
+            &options,
+            &mut scene,
+            placement,
+            &output,
+            &stop_signal,
+        )
     })
 }
 
@@ -572,6 +637,7 @@ fn run_render(args: RenderArgs) -> Result<ExitCode> {
 /// scene loaded once, posed for each frame, then flattened (the BVH built) and rendered.
 fn render_frames(
     args: &RenderArgs,
+    options: &LoadOptions,
     scene: &mut Scene,
     placement: Placement,
     output: &Path,
@@ -638,6 +704,7 @@ fn render_frames(
             output: &frame_output,
             frame: frame.filter(|_| sequence),
             release_world: i + 1 == count,
+            options,
         };
         let code = render_frame(args, scene, placement, &job, stop_signal, &mut said)?;
         if code != ExitCode::SUCCESS {
@@ -662,6 +729,9 @@ struct FrameJob<'a> {
     frame: Option<u32>,
     /// Whether the world may be freed once flattened (the last frame).
     release_world: bool,
+    /// How the scene was loaded (a part file records it, so that merge can check its parts
+    /// come from one render).
+    options: &'a LoadOptions,
 }
 
 fn render_frame(
@@ -676,7 +746,10 @@ fn render_frame(
     // Verbose output for a single image; a sequence prints one line per frame.
     let verbose = !args.quiet && job.frame.is_none();
     // Refuse an unwritable output before spending time on the render.
-    wavetrace::output::check_writable(output)?;
+    match args.part {
+        Some(_) => wavetrace::farm::parts::check_part_writable(output)?,
+        None => wavetrace::output::check_writable(output)?,
+    }
     let flat = flatten(&scene.world, &args.scene)?;
     if job.release_world {
         // The render reads only the render scene: the world's meshes (18 bytes a triangle
@@ -697,6 +770,21 @@ fn render_frame(
     }
     let denoise = denoise_wanted(args);
     let (settings, time_budget) = frame_settings(args, scene, placement, &flat, denoise)?;
+    let part = match args.part {
+        Some(part) if denoise => anyhow::bail!(
+            "--part {part}: merged parts are written as rendered; denoising them is not \
+             supported yet, so give --no-denoise"
+        ),
+        Some(part) => Some(farm_cli::PartRender::new(
+            part,
+            args,
+            job.options,
+            &settings,
+            time_budget,
+        )?),
+        None => None,
+    };
+    let rows = part.as_ref().map_or(0..settings.height, |p| p.rows.clone());
 
     if let Some(signal) = received(stop_signal) {
         eprintln!(
@@ -705,8 +793,17 @@ fn render_frame(
         );
         return Ok(ExitCode::from(128 + signal as u8));
     }
-    let (film, stats) =
-        render_with_progress(args, &flat, &settings, time_budget, stop_signal, verbose)?;
+    let (film, stats) = render_with_progress(
+        args,
+        &flat,
+        (&settings, rows),
+        time_budget,
+        stop_signal,
+        verbose,
+    )?;
+    if let Some(part) = &part {
+        return part.finish(output, &film, &stats, received(stop_signal), args.quiet);
+    }
 
     let written = if denoise || !args.aov.is_empty() {
         write_output(args, output, &film, denoise)?
@@ -819,7 +916,7 @@ fn frame_settings(
 fn render_with_progress(
     args: &RenderArgs,
     flat: &wavetrace::RenderScene,
-    settings: &RenderSettings,
+    (settings, rows): (&RenderSettings, std::ops::Range<u32>),
     time_budget: Option<Duration>,
     stop_signal: &AtomicI32,
     verbose: bool,
@@ -846,7 +943,7 @@ fn render_with_progress(
     }
     let start = Instant::now();
     let mut budget = time_budget.map(|b| TimeBudget::new(start, b));
-    let rendered = render(flat, settings, |p| {
+    let rendered = render_rows(flat, settings, rows, |p| {
         let pass_ended = p.pass_ended;
         match &budget {
             Some(b) => bar.set_position(start.elapsed().as_millis().min(b.length_ms()) as u64),

@@ -90,9 +90,10 @@ pub fn caustics_traced(scene: &RenderScene, settings: &RenderSettings) -> bool {
         && has_light
 }
 
-/// Light paths in a pass in which `active_pixels` pixels take a sample.
-pub fn light_path_count(settings: &RenderSettings, active_pixels: u64) -> u64 {
-    (settings.caustic_paths as f64 * active_pixels as f64).round() as u64
+/// Light paths in a pass of an image of `pixels` pixels (all of them, however many take a
+/// sample in the pass: see `render_rows`).
+pub fn light_path_count(settings: &RenderSettings, pixels: u64) -> u64 {
+    (settings.caustic_paths as f64 * pixels as f64).round() as u64
 }
 
 /// Salt of the light paths' keys, apart from the camera paths'.

@@ -40,7 +40,7 @@ use light_vertices::LightVertex;
 use params::{CausticWeights, ShadeParams};
 use rayon::prelude::*;
 use stats::RenderStats;
-use std::ops::{Deref, DerefMut};
+use std::ops::{Deref, DerefMut, Range};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -112,13 +112,40 @@ fn check_image_memory(settings: &RenderSettings, caustics_traced: bool) -> Resul
 pub fn render(
     scene: &RenderScene,
     settings: &RenderSettings,
+    progress: impl FnMut(Progress) -> Flow,
+) -> Result<(Film, RenderStats)> {
+    render_rows(scene, settings, 0..settings.height, progress)
+}
+
+/// Renders only the pixel rows `rows` of the image (a part of a frame split for a render
+/// farm, [`crate::farm`]): the film is the whole image's, and its pixels in `rows` hold
+/// exactly what [`render`] puts there (bit for bit); the others hold no samples. The rows
+/// start and end on adaptive sampling's tile rows ([`TILE`]) or at the image's bottom, so
+/// that each tile is decided on pixels of one part only. Every part traces the whole pass's
+/// light paths (their splats and vertices serve pixels anywhere in the image).
+pub fn render_rows(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+    rows: Range<u32>,
     mut progress: impl FnMut(Progress) -> Flow,
 ) -> Result<(Film, RenderStats)> {
     settings.validate()?;
+    if rows.is_empty()
+        || rows.end > settings.height
+        || !rows.start.is_multiple_of(TILE)
+        || !(rows.end.is_multiple_of(TILE) || rows.end == settings.height)
+    {
+        return Err(crate::Error::Settings(format!(
+            "rows {}..{} are not a run of whole {TILE}-pixel tile rows of a {}-row image",
+            rows.start, rows.end, settings.height
+        )));
+    }
     let start = Instant::now();
     let camera = PinholeCamera::new(&scene.camera, settings.width, settings.height)
         .with_filter(settings.filter);
-    let pixel_count = settings.width * settings.height;
+    let image_pixels = settings.width * settings.height;
+    let part_pixels = rows.start * settings.width..rows.end * settings.width;
+    let pixel_count = part_pixels.len() as u32;
     let caustics_traced = light_paths::caustics_traced(scene, settings);
     check_image_memory(settings, caustics_traced)?;
     let batch_size = paths_per_batch(settings, caustics_traced);
@@ -132,7 +159,7 @@ pub fn render(
     }
     let mut tiles = settings
         .adaptive
-        .map(|a| ActiveTiles::new(settings.width, settings.height, a));
+        .map(|a| ActiveTiles::new(settings.width, settings.height, a, rows.clone()));
     let mut stats = RenderStats::default();
     let mut samples_total = pixel_count as u64 * settings.spp as u64;
     let connections = caustics_traced && settings.caustic_connections;
@@ -147,10 +174,10 @@ pub fn render(
 
     'passes: for sample_index in 0..settings.spp {
         let caustics = if caustics_traced {
-            let active_pixels = tiles
-                .as_ref()
-                .map_or(pixel_count as u64, |t| t.active_pixels());
-            let light_paths = light_paths::light_path_count(settings, active_pixels);
+            // As many light paths in every pass, however many tiles have stopped: the count
+            // weights every pixel's caustics, so it may depend on nothing outside the pixel's
+            // own tile, or a frame rendered in parts would not add up to the whole.
+            let light_paths = light_paths::light_path_count(settings, image_pixels as u64);
             let start = Instant::now();
             stats.light_rays += light_paths::trace_light_paths(
                 scene,
@@ -171,7 +198,7 @@ pub fn render(
         } else {
             None
         };
-        let rounds = (0..pixel_count).step_by(round_size as usize);
+        let rounds = part_pixels.clone().step_by(round_size as usize);
         let last_round = rounds.len() - 1;
         for (round_number, first) in rounds.enumerate() {
             let batch = Batch {
@@ -183,7 +210,7 @@ pub fn render(
                 caustics,
                 splats: &splats,
             };
-            let pixels = first..(first + round_size).min(pixel_count);
+            let pixels = first..(first + round_size).min(part_pixels.end);
             let round = film
                 .regions_mut(pixels, batch_size as usize)
                 .map_init(
@@ -215,11 +242,11 @@ pub fn render(
         }
     }
     film.rejected_samples = stats.rejected_samples;
+    (stats.spp_min, stats.spp_mean, stats.spp_max) = film.spp_range(part_pixels);
     stats.complete_spp = match tiles {
-        Some(_) => film.min_samples(),
+        Some(_) => stats.spp_min,
         None => (stats.samples / pixel_count as u64) as u32,
     };
-    (stats.spp_min, stats.spp_mean, stats.spp_max) = film.spp_range();
     stats.adaptive = settings.adaptive.is_some();
     stats.wall_time = start.elapsed();
     Ok((film, stats))
@@ -243,17 +270,24 @@ struct ActiveTiles {
 }
 
 impl ActiveTiles {
-    fn new(width: u32, height: u32, adaptive: Adaptive) -> Self {
+    /// Every tile of the pixel rows `rows` (whole tile rows) active, the others stopped.
+    fn new(width: u32, height: u32, adaptive: Adaptive, rows: Range<u32>) -> Self {
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
+        let tile_rows = rows.start / TILE..rows.end.div_ceil(TILE);
+        let part_pixels = (rows.start * width) as usize..(rows.end * width) as usize;
         ActiveTiles {
             width,
             height,
             adaptive,
             tiles_x,
-            tile_active: vec![true; (tiles_x * tiles_y) as usize],
-            pixel_active: vec![true; (width * height) as usize],
-            active_pixels: width as u64 * height as u64,
+            tile_active: (0..tiles_x * tiles_y)
+                .map(|tile| tile_rows.contains(&(tile / tiles_x)))
+                .collect(),
+            pixel_active: (0..(width * height) as usize)
+                .map(|pixel| part_pixels.contains(&pixel))
+                .collect(),
+            active_pixels: part_pixels.len() as u64,
         }
     }
 

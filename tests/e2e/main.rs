@@ -21,6 +21,7 @@ mod deform;
 mod denoise;
 mod determinism;
 mod environment;
+mod farm;
 mod filters;
 mod furnace;
 mod fuzz_regressions;
