@@ -10,8 +10,7 @@ mod punctual;
 mod single;
 
 pub use environment::Environment;
-pub(crate) use punctual::spot_falloff;
-pub use punctual::{DeltaKind, DeltaLight};
+pub use punctual::{DeltaKind, DeltaLight, SpotCone};
 use single::{SingleLight, single_light};
 
 use crate::geometry::Shape;

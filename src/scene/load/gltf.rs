@@ -18,7 +18,8 @@ use crate::error::{Error, Result};
 use crate::math::{Affine3A, Mat4, Rgb, Vec2, Vec3, Vec4};
 use crate::scene::{
     AlphaCoverage, AlphaMode, Camera, Emitter, Material, MaterialTextures, Mesh, Name,
-    PunctualLight, SharedMesh, TextureSlot, Transform, VertexColors, VertexTangents, Volume,
+    PunctualLight, SharedMesh, SpotFalloff, TextureSlot, Transform, VertexColors, VertexTangents,
+    Volume,
 };
 use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
 use gltf::khr_lights_punctual::Kind as LightKind;
@@ -378,6 +379,7 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
                     intensity: colour,
                     inner_cone: inner_cone_angle,
                     outer_cone: outer_cone_angle,
+                    falloff: spot_falloff(&document, inner_cone_angle, outer_cone_angle),
                 },
             };
             if !colour.is_finite() || colour.min_element() < 0.0 {
@@ -446,6 +448,20 @@ fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camer
         up: right.cross(forward),
         vfov: p.yfov(),
         aspect_ratio: p.aspect_ratio(),
+    }
+}
+
+/// How a spot's intensity falls between its cones: glTF's falloff, or, in a file Blender's
+/// exporter wrote (`asset.generator` "Khronos glTF Blender I/O ..."), the Spot Blend that
+/// Blender's importer recovers, `1 - inner / outer` (the exporter writes
+/// `inner = outer (1 - blend)`), rendered with Cycles' smoothstep.
+fn spot_falloff(document: &gltf::Document, inner: f32, outer: f32) -> SpotFalloff {
+    let generator = document.as_json().asset.generator.as_deref();
+    if !generator.is_some_and(|g| g.starts_with("Khronos glTF Blender I/O")) || outer <= 0.0 {
+        return SpotFalloff::Gltf;
+    }
+    SpotFalloff::Blender {
+        blend: (1.0 - inner / outer).clamp(0.0, 1.0),
     }
 }
 
