@@ -170,6 +170,11 @@ pub struct MaterialTextures {
     pub normal_scale: f32,
     /// Linear colour (decoded from sRGB) that multiplies the [`Emitter`]'s radiance.
     pub emissive: Option<TextureSlot>,
+    /// `KHR_materials_specular` `specularTexture`: its alpha (linear) multiplies `specular`.
+    pub specular: Option<TextureSlot>,
+    /// `KHR_materials_specular` `specularColorTexture`: linear colour (decoded from sRGB)
+    /// that multiplies `specular_color`.
+    pub specular_color: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -179,6 +184,8 @@ impl MaterialTextures {
             && self.metallic_roughness.is_none()
             && self.normal.is_none()
             && self.emissive.is_none()
+            && self.specular.is_none()
+            && self.specular_color.is_none()
     }
 }
 

@@ -466,13 +466,22 @@ fn spot_falloff(document: &gltf::Document, inner: f32, outer: f32) -> SpotFallof
 }
 
 /// Every texture a material reads, with the encoding of its use: colour textures (base
-/// colour, emission) are sRGB, data textures (metallic-roughness, normal) linear.
+/// colour, emission, specular colour) are sRGB, data textures (metallic-roughness, normal,
+/// specular strength) linear.
 fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
     let mut uses = Vec::new();
     for m in document.materials() {
         let pbr = m.pbr_metallic_roughness();
-        let srgb = [pbr.base_color_texture(), m.emissive_texture()];
-        let linear = [pbr.metallic_roughness_texture()];
+        let specular = m.specular();
+        let srgb = [
+            pbr.base_color_texture(),
+            m.emissive_texture(),
+            specular.as_ref().and_then(|s| s.specular_color_texture()),
+        ];
+        let linear = [
+            pbr.metallic_roughness_texture(),
+            specular.as_ref().and_then(|s| s.specular_texture()),
+        ];
         for info in srgb.into_iter().flatten() {
             uses.push((info.texture().index(), Encoding::Srgb));
         }
@@ -901,9 +910,22 @@ fn import_material(
             )
         }),
         info_slot(textures, m.emissive_texture(), Encoding::Srgb),
+        specular
+            .as_ref()
+            .and_then(|s| info_slot(textures, s.specular_texture(), Encoding::Linear)),
+        specular
+            .as_ref()
+            .and_then(|s| info_slot(textures, s.specular_color_texture(), Encoding::Srgb)),
     ];
     let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
-    let [base_color, metallic_roughness, normal_map, emissive] = slots.map(|slot| {
+    let [
+        base_color,
+        metallic_roughness,
+        normal_map,
+        emissive,
+        specular_map,
+        specular_color_map,
+    ] = slots.map(|slot| {
         let (slot, set) = slot?;
         if Some(set) != uv_set {
             warnings.push(format!(
@@ -939,6 +961,8 @@ fn import_material(
             normal: normal_map,
             normal_scale: normal.map_or(1.0, |n| n.scale()),
             emissive,
+            specular: specular_map,
+            specular_color: specular_color_map,
         },
         uv_set,
         alpha,

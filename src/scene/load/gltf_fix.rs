@@ -276,6 +276,12 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
         "material",
     );
     count(
+        "KHR_materials_transmission textures (transmissionTexture) are ignored: the factor \
+         applies everywhere",
+        with_keys("KHR_materials_transmission", &["transmissionTexture"]),
+        "material",
+    );
+    count(
         "KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is ignored: the \
          path tracer measures the distance travelled inside the object",
         with_keys(
