@@ -419,13 +419,21 @@ pub struct SurfaceTextures {
     pub normal: TextureRef,
     /// Multiplies the normal map's x and y.
     pub normal_scale: f32,
+    /// Alpha multiplies the dielectric's `specular` (`KHR_materials_specular`).
+    pub specular: TextureRef,
+    /// Multiplies the dielectric's `specular_color` (`KHR_materials_specular`).
+    pub specular_color: TextureRef,
 }
 
 impl SurfaceTextures {
     /// Whether the material reads no texture (the common, fast case).
     #[inline]
     pub fn is_empty(&self) -> bool {
-        !(self.base_color.is_set() || self.metallic_roughness.is_set() || self.normal.is_set())
+        !(self.base_color.is_set()
+            || self.metallic_roughness.is_set()
+            || self.normal.is_set()
+            || self.specular.is_set()
+            || self.specular_color.is_set())
     }
 }
 

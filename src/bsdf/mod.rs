@@ -245,6 +245,26 @@ impl Bsdf {
         }
     }
 
+    /// The same model with the dielectric's `specular` scaled by `specular_scale` and its
+    /// `specular_color` by `color_scale` (`KHR_materials_specular` textures); only
+    /// [`Bsdf::MetallicRoughness`] and [`Bsdf::Layered`] have these parameters.
+    #[inline]
+    pub fn with_specular_scaled(self, specular_scale: f32, color_scale: Rgb) -> Bsdf {
+        let scaled = |params: MetallicRoughness| MetallicRoughness {
+            specular: params.specular * specular_scale,
+            specular_color: params.specular_color * color_scale,
+            ..params
+        };
+        match self {
+            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(scaled(params)),
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                base: scaled(layered.base),
+                ..layered
+            }),
+            other => other,
+        }
+    }
+
     /// BSDF value for a pair of directions (zero for delta lobes).
     #[inline]
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {

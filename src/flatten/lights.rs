@@ -4,10 +4,12 @@
 use super::Primitives;
 use super::materials;
 use crate::error::{Error, Result};
-use crate::lights::{AreaLight, DeltaLight, Environment, LightTable};
+use crate::lights::{AreaLight, DeltaLight, Environment, LightTable, SpotCone};
 use crate::math::{Vec3, Vec3A};
 use crate::render_scene::NO_EMITTER;
-use crate::scene::{Emitter, EnvironmentLight, EnvironmentSource, Name, PunctualLight, Transform};
+use crate::scene::{
+    Emitter, EnvironmentLight, EnvironmentSource, Name, PunctualLight, SpotFalloff, Transform,
+};
 use crate::texture::TexturedEmission;
 use obvhs::aabb::Aabb;
 use std::path::Path;
@@ -105,6 +107,7 @@ pub(super) fn punctual_lights(
                 intensity,
                 inner_cone,
                 outer_cone,
+                falloff,
             } => {
                 // inner = outer is a hard-edged cone (Blender's Spot Blend 0).
                 if !(0.0 <= inner_cone
@@ -116,7 +119,16 @@ pub(super) fn punctual_lights(
                         "spot cone angles must satisfy 0 <= inner <= outer <= pi/2, outer > 0",
                     );
                 }
-                DeltaLight::spot(position, direction, intensity, inner_cone, outer_cone)
+                let cone = match falloff {
+                    SpotFalloff::Gltf => SpotCone::gltf(inner_cone, outer_cone),
+                    SpotFalloff::Blender { blend } if (0.0..=1.0).contains(&blend) => {
+                        SpotCone::blender(outer_cone, blend)
+                    }
+                    SpotFalloff::Blender { .. } => {
+                        return bad("a Blender spot's blend must lie in [0, 1]");
+                    }
+                };
+                DeltaLight::spot(position, direction, intensity, cone)
             }
             PunctualLight::Directional { irradiance } => {
                 DeltaLight::directional(direction, irradiance, scene_radius)

@@ -161,6 +161,8 @@ impl TextureInterner {
             metallic_roughness: self.intern(t.metallic_roughness.as_ref()),
             normal: self.intern(t.normal.as_ref()),
             normal_scale: t.normal_scale,
+            specular: self.intern(t.specular.as_ref()),
+            specular_color: self.intern(t.specular_color.as_ref()),
         }
     }
 }

@@ -10,8 +10,7 @@ mod punctual;
 mod single;
 
 pub use environment::Environment;
-pub(crate) use punctual::spot_falloff;
-pub use punctual::{DeltaKind, DeltaLight};
+pub use punctual::{DeltaKind, DeltaLight, SpotCone};
 use single::{SingleLight, single_light};
 
 use crate::geometry::Shape;
@@ -789,8 +788,7 @@ mod tests {
             Vec3A::new(0.0, 0.0, 2.0),
             Vec3A::NEG_Z,
             Rgb::splat(8.0),
-            0.2,
-            0.4,
+            SpotCone::gltf(0.2, 0.4),
         );
         let table = LightTable::new(vec![], vec![point, spot]);
         let p_point = table.delta_lights[0].select_probability;

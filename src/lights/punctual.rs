@@ -24,18 +24,14 @@ pub enum DeltaKind {
         /// Position.
         position: Vec3A,
     },
-    /// Shines from `position` into a cone about `direction`, with glTF's smooth falloff
-    /// between the inner and outer cone (`attenuation = clamp((cos - cos_outer) / (cos_inner - cos_outer))^2`),
-    /// or a hard edge when the two cones are one (Blender's Spot Blend 0).
+    /// Shines from `position` into a cone about `direction`, attenuated as `cone` says.
     Spot {
         /// Position.
         position: Vec3A,
         /// Axis of the cone (unit).
         direction: Vec3A,
-        /// Cosine of the inner cone angle.
-        cos_inner: f32,
-        /// Cosine of the outer cone angle.
-        cos_outer: f32,
+        /// Where and how the intensity falls off.
+        cone: SpotCone,
     },
     /// Parallel light travelling along `direction` (unit).
     Directional {
@@ -55,19 +51,17 @@ impl DeltaLight {
         }
     }
 
-    /// A spot light; cone angles in radians from the axis.
-    pub fn spot(position: Vec3A, direction: Vec3A, intensity: Rgb, inner: f32, outer: f32) -> Self {
-        let (cos_inner, cos_outer) = (inner.cos(), outer.cos());
+    /// A spot light of on-axis intensity `intensity` W/sr.
+    pub fn spot(position: Vec3A, direction: Vec3A, intensity: Rgb, cone: SpotCone) -> Self {
         DeltaLight {
             kind: DeltaKind::Spot {
                 position,
                 direction,
-                cos_inner,
-                cos_outer,
+                cone,
             },
             intensity,
-            // The solid angle of the cone halfway between the inner and outer angles.
-            power: 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * luminance(intensity),
+            // The solid angle of the cone halfway between full intensity and none.
+            power: 2.0 * PI * (1.0 - 0.5 * (cone.cos_full + cone.cos_outer)) * luminance(intensity),
             select_probability: 0.0,
         }
     }
@@ -84,17 +78,70 @@ impl DeltaLight {
     }
 }
 
-/// The square root of a spot light's attenuation at cosine `cos` from its axis: glTF's
-/// linear ramp from the outer cone (0) to the inner cone (1), or, when the cones coincide,
-/// 1 inside and 0 outside (a hard edge, with no division by their zero difference).
-#[inline]
-pub(crate) fn spot_falloff(cos: f32, cos_inner: f32, cos_outer: f32) -> f32 {
-    if cos_inner > cos_outer {
-        ((cos - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
-    } else if cos >= cos_outer {
-        1.0
-    } else {
-        0.0
+/// The angular falloff of a spot light: no light outside the cone of cosine `cos_outer`, full
+/// intensity inside the cone of cosine `cos_full`, and between them a profile of the ramp
+/// `x = (cos - cos_outer) / (cos_full - cos_outer)`, linear in the cosine. When the two cones
+/// are one the edge is hard (Blender's Spot Blend 0), with no division by their difference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpotCone {
+    /// Cosine of the angle from the axis beyond which there is no light.
+    pub cos_outer: f32,
+    /// Cosine of the angle from the axis within which the intensity is full.
+    pub cos_full: f32,
+    /// The shape of the ramp.
+    pub profile: SpotProfile,
+}
+
+/// The shape of a spot light's ramp `x` in [0, 1] between its cones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpotProfile {
+    /// `x^2`: the falloff the glTF specification recommends (`KHR_lights_punctual`).
+    Squared,
+    /// `smoothstep(x) = x^2 (3 - 2 x)`: Cycles' spot blend.
+    Smoothstep,
+}
+
+impl SpotCone {
+    /// glTF's cone between the `inner` and `outer` angles (radians from the axis).
+    pub fn gltf(inner: f32, outer: f32) -> Self {
+        SpotCone {
+            cos_outer: outer.cos(),
+            cos_full: inner.cos(),
+            profile: SpotProfile::Squared,
+        }
+    }
+
+    /// Blender's (Cycles') cone of Spot Size `2 outer` and Spot Blend `blend` in [0, 1]: the
+    /// smoothstep spans `blend` of the cosine range `[cos outer, 1]`.
+    pub fn blender(outer: f32, blend: f32) -> Self {
+        let cos_outer = outer.cos();
+        SpotCone {
+            cos_outer,
+            cos_full: cos_outer + (1.0 - cos_outer) * blend,
+            profile: SpotProfile::Smoothstep,
+        }
+    }
+
+    /// The linear ramp at cosine `cos` from the axis: 0 at the outer cone, 1 at the full one.
+    #[inline]
+    fn ramp(&self, cos: f32) -> f32 {
+        if self.cos_full > self.cos_outer {
+            ((cos - self.cos_outer) / (self.cos_full - self.cos_outer)).clamp(0.0, 1.0)
+        } else if cos >= self.cos_outer {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// The fraction of the on-axis intensity sent at cosine `cos` from the axis.
+    #[inline]
+    pub fn attenuation(&self, cos: f32) -> f32 {
+        let x = self.ramp(cos);
+        match self.profile {
+            SpotProfile::Squared => x * x,
+            SpotProfile::Smoothstep => x * x * (3.0 - 2.0 * x),
+        }
     }
 }
 
@@ -129,16 +176,14 @@ impl DeltaLight {
             DeltaKind::Spot {
                 position,
                 direction,
-                cos_inner,
-                cos_outer,
+                cone,
             } => {
                 let (wi, distance, w) = towards(position);
                 let cos = -wi.dot(direction);
-                let t = spot_falloff(cos, cos_inner, cos_outer);
                 PunctualSample {
                     wi,
                     distance,
-                    weight: self.intensity * (w * t * t),
+                    weight: self.intensity * (w * cone.attenuation(cos)),
                 }
             }
             DeltaKind::Directional { direction } => PunctualSample {
@@ -156,14 +201,23 @@ mod tests {
 
     #[test]
     fn a_spot_with_equal_cones_has_a_hard_edge() {
+        let cone = SpotCone::gltf(0.5, 0.5);
         let edge = 0.5f32.cos();
-        assert_eq!(spot_falloff(edge + 1e-4, edge, edge), 1.0);
-        assert_eq!(spot_falloff(1.0, edge, edge), 1.0);
-        assert_eq!(spot_falloff(edge - 1e-4, edge, edge), 0.0);
+        assert_eq!(cone.attenuation(edge + 1e-4), 1.0);
+        assert_eq!(cone.attenuation(1.0), 1.0);
+        assert_eq!(cone.attenuation(edge - 1e-4), 0.0);
+        // Blender's Spot Blend 0 is the same hard edge.
+        assert_eq!(
+            SpotCone::blender(0.5, 0.0),
+            SpotCone {
+                profile: SpotProfile::Smoothstep,
+                ..cone
+            }
+        );
         // Seen from a point on the axis, 2 m away: intensity / d^2, in full.
         let light = DeltaLight {
             select_probability: 1.0,
-            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, 0.5, 0.5)
+            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, cone)
         };
         let s = light.sample_from(Vec3A::new(0.0, 0.0, -2.0));
         assert!((s.weight - Rgb::splat(0.25)).abs().max_element() < 1e-6);
@@ -180,19 +234,51 @@ mod tests {
         let (inner, outer) = (0.3f32, 0.6f32);
         let (ci, co) = (inner.cos(), outer.cos());
         // Halfway in cosine: (1/2)^2 of the intensity, as glTF's formula squared.
+        let cone = SpotCone::gltf(inner, outer);
         let light = DeltaLight {
             select_probability: 1.0,
-            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, inner, outer)
+            ..DeltaLight::spot(Vec3A::ZERO, Vec3A::NEG_Z, Rgb::ONE, cone)
         };
         let cos = 0.5 * (ci + co);
         let sin = (1.0 - cos * cos).sqrt();
         let s = light.sample_from(Vec3A::new(sin, 0.0, -cos));
         assert!((s.weight.x - 0.25).abs() < 1e-4, "{}", s.weight);
-        assert_eq!(spot_falloff(ci + 1e-3, ci, co), 1.0);
-        assert_eq!(spot_falloff(co - 1e-3, ci, co), 0.0);
+        assert_eq!(cone.attenuation(ci + 1e-3), 1.0);
+        assert_eq!(cone.attenuation(co - 1e-3), 0.0);
         // A narrow blend keeps its own ramp (no minimum width).
-        let narrow = (0.5f32.cos(), 0.5001f32.cos());
-        let mid = 0.5 * (narrow.0 + narrow.1);
-        assert!((spot_falloff(mid, narrow.0, narrow.1) - 0.5).abs() < 0.05);
+        let narrow = SpotCone::gltf(0.5, 0.5001);
+        let mid = 0.5 * (narrow.cos_full + narrow.cos_outer);
+        assert!((narrow.attenuation(mid) - 0.25).abs() < 0.05);
+    }
+
+    #[test]
+    fn a_blender_spot_follows_cycles_smoothstep_at_every_angle() {
+        // Cycles 4.5 (kernel/light/spot.h): smoothstep((cos t - cos o) / ((1 - cos o) blend)),
+        // o = spot_size / 2, with no further cosine. Spot Size 60 degrees, blend 0.15 and 0.5.
+        for blend in [0.15f32, 0.5, 1.0] {
+            let outer = 30f32.to_radians();
+            let cone = SpotCone::blender(outer, blend);
+            let co = outer.cos();
+            for degrees in [
+                0.0f32, 5.0, 10.0, 15.0, 20.0, 22.0, 24.0, 26.0, 28.0, 29.5, 31.0,
+            ] {
+                let cos = degrees.to_radians().cos();
+                let x = ((cos - co) / ((1.0 - co) * blend)).clamp(0.0, 1.0);
+                let cycles = x * x * (3.0 - 2.0 * x);
+                let ours = cone.attenuation(cos);
+                assert!(
+                    (ours - cycles).abs() < 1e-5,
+                    "blend {blend}, {degrees} deg: {ours} vs {cycles}"
+                );
+            }
+        }
+        // Blend 0.5 of a 30-degree half-angle is full from 21.1 degrees, not glTF's 15.
+        let cone = SpotCone::blender(30f32.to_radians(), 0.5);
+        assert!((cone.cos_full.acos().to_degrees() - 21.1).abs() < 0.01);
+        assert!(cone.attenuation(21.3f32.to_radians().cos()) < 1.0);
+        assert_eq!(cone.attenuation(20.9f32.to_radians().cos()), 1.0);
+        // The smoothstep is half way at the ramp's middle, the glTF square a quarter.
+        let mid = 0.5 * (cone.cos_full + cone.cos_outer);
+        assert!((cone.attenuation(mid) - 0.5).abs() < 1e-5);
     }
 }

@@ -170,6 +170,11 @@ pub struct MaterialTextures {
     pub normal_scale: f32,
     /// Linear colour (decoded from sRGB) that multiplies the [`Emitter`]'s radiance.
     pub emissive: Option<TextureSlot>,
+    /// `KHR_materials_specular` `specularTexture`: its alpha (linear) multiplies `specular`.
+    pub specular: Option<TextureSlot>,
+    /// `KHR_materials_specular` `specularColorTexture`: linear colour (decoded from sRGB)
+    /// that multiplies `specular_color`.
+    pub specular_color: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -179,6 +184,8 @@ impl MaterialTextures {
             && self.metallic_roughness.is_none()
             && self.normal.is_none()
             && self.emissive.is_none()
+            && self.specular.is_none()
+            && self.specular_color.is_none()
     }
 }
 
@@ -251,19 +258,36 @@ pub enum PunctualLight {
         /// Radiant intensity, W/sr per colour channel (glTF's candela, read as W/sr).
         intensity: Rgb,
     },
-    /// A point light restricted to a cone about `-z`, with glTF's smooth angular falloff.
+    /// A point light restricted to a cone about `-z`, with a smooth angular falloff.
     Spot {
         /// Radiant intensity on the axis, W/sr.
         intensity: Rgb,
-        /// Angle from the axis (radians) inside which the intensity is full.
+        /// Angle from the axis (radians) inside which the intensity is full (glTF's falloff).
         inner_cone: f32,
         /// Angle from the axis (radians) outside which there is no light.
         outer_cone: f32,
+        /// How the intensity falls from the axis to the outer cone.
+        falloff: SpotFalloff,
     },
     /// Parallel light travelling along `-z`, as from an infinitely distant source.
     Directional {
         /// Irradiance on a surface facing the light, W/m^2 (glTF's lux, read as W/m^2).
         irradiance: Rgb,
+    },
+}
+
+/// How a spot light's intensity falls off toward its outer cone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SpotFalloff {
+    /// glTF's recommended falloff: the square of a ramp linear in the cosine, 0 at the outer
+    /// cone and 1 at the inner one.
+    Gltf,
+    /// Blender's Spot Blend as Cycles renders it: a smoothstep in the cosine from the outer cone
+    /// (0) over `blend` (in [0, 1]) of the cosine range `[cos outer, 1]`; the inner cone is
+    /// not used.
+    Blender {
+        /// Blender's Spot Blend.
+        blend: f32,
     },
 }
 

@@ -467,21 +467,19 @@ fn emit_punctual(light: &DeltaLight, u: Vec2) -> Option<Emission<'static>> {
         DeltaKind::Spot {
             position,
             direction: axis,
-            cos_inner,
-            cos_outer,
+            cone,
         } => {
             // Uniform in the outer cone: cos theta uniform in [cos_outer, 1].
-            let cos = 1.0 - u.x * (1.0 - cos_outer);
+            let cos = 1.0 - u.x * (1.0 - cone.cos_outer);
             let sin = (1.0 - cos * cos).max(0.0).sqrt();
             let phi = 2.0 * PI * u.y;
             let local = Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos);
-            let falloff = crate::lights::spot_falloff(cos, cos_inner, cos_outer);
-            let solid_angle = 2.0 * PI * (1.0 - cos_outer);
+            let solid_angle = 2.0 * PI * (1.0 - cone.cos_outer);
             (
                 position,
                 Frame::from_normal(axis).to_world(local),
                 1.0 / solid_angle,
-                falloff * falloff,
+                cone.attenuation(cos),
             )
         }
         DeltaKind::Directional { .. } => return None,

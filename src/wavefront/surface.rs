@@ -70,12 +70,38 @@ pub(super) fn textured_surface(
         let c = lookup(scene, &textures.metallic_roughness, uv);
         bsdf = bsdf.with_metallic_roughness_scaled(c.z, c.y);
     }
+    if textures.specular.is_set() || textures.specular_color.is_set() {
+        bsdf = specular_textured(scene, textures, uv, bsdf);
+    }
     let ns = if textures.normal.is_set() {
         mapped_normal(scene, textures, slot, b, uv, ng, ns, wo)
     } else {
         ns
     };
     (bsdf, ns)
+}
+
+/// `bsdf` with its dielectric's specular strength and colour scaled by the
+/// `KHR_materials_specular` textures (strength: the alpha of `specularTexture`).
+#[inline(never)]
+fn specular_textured(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    uv: Vec2,
+    bsdf: Bsdf,
+) -> Bsdf {
+    let strength = if textures.specular.is_set() {
+        let t = &textures.specular;
+        scene.textures[t.texture as usize].lookup_alpha(t.uv_transform.apply(uv))
+    } else {
+        1.0
+    };
+    let colour = if textures.specular_color.is_set() {
+        lookup(scene, &textures.specular_color, uv)
+    } else {
+        Rgb::ONE
+    };
+    bsdf.with_specular_scaled(strength, colour)
 }
 
 /// The shading normal from a tangent-space normal map. The tangent is made orthogonal to
@@ -177,12 +203,20 @@ mod tests {
     use crate::bsdf::MetallicRoughness;
     use crate::math::Vec3A;
 
-    /// A white metal (metallic 1, roughness 1) quad with a 1 x 1 metallic-roughness texture
-    /// of (red 0, green 128, blue 64), written as a glTF with its PNG.
-    fn mr_textured_quad(dir: &std::path::Path) -> std::path::PathBuf {
-        image::RgbImage::from_pixel(1, 1, image::Rgb([0, 128, 64]))
-            .save(dir.join("mr.png"))
-            .unwrap();
+    /// A quad with `material` (JSON) whose textures are `images` in order (texture i reads
+    /// image i), written as a glTF with its PNGs.
+    fn textured_quad(
+        dir: &std::path::Path,
+        material: &str,
+        images: &[image::RgbaImage],
+    ) -> std::path::PathBuf {
+        let mut uris = Vec::new();
+        let mut textures = Vec::new();
+        for (i, img) in images.iter().enumerate() {
+            img.save(dir.join(format!("t{i}.png"))).unwrap();
+            uris.push(format!(r#"{{"uri": "t{i}.png"}}"#));
+            textures.push(format!(r#"{{"source": {i}, "sampler": 0}}"#));
+        }
         let floats: [f32; 20] = [
             -1.0, -1.0, 0.0, 1.0, -1.0, 0.0, 1.0, 1.0, 0.0, -1.0, 1.0, 0.0, // positions
             0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0, // uvs
@@ -195,9 +229,8 @@ mod tests {
             "nodes": [{{"mesh": 0}}],
             "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0, "TEXCOORD_0": 1}},
                 "indices": 2, "material": 0}}]}}],
-            "materials": [{{"pbrMetallicRoughness": {{"metallicFactor": 1.0, "roughnessFactor": 1.0,
-                "metallicRoughnessTexture": {{"index": 0}}}}}}],
-            "textures": [{{"source": 0, "sampler": 0}}], "images": [{{"uri": "mr.png"}}],
+            "materials": [{material}],
+            "textures": [{}], "images": [{}],
             "samplers": [{{"magFilter": 9728}}],
             "buffers": [{{"uri": "quad.bin", "byteLength": {}}}],
             "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}},
@@ -208,6 +241,8 @@ mod tests {
                   "min": [-1, -1, 0], "max": [1, 1, 0]}},
                 {{"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"}},
                 {{"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}}]}}"#,
+            textures.join(", "),
+            uris.join(", "),
             bytes.len()
         );
         let path = dir.join("quad.gltf");
@@ -218,7 +253,12 @@ mod tests {
     #[test]
     fn metallic_roughness_texture_is_linear_blue_metallic_green_roughness() {
         let dir = tempfile::tempdir().unwrap();
-        let path = mr_textured_quad(dir.path());
+        // A white metal (metallic 1, roughness 1) with a 1 x 1 metallic-roughness texture of
+        // (red 0, green 128, blue 64).
+        let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 1.0,
+            "roughnessFactor": 1.0, "metallicRoughnessTexture": {"index": 0}}}"#;
+        let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([0, 128, 64, 255]));
+        let path = textured_quad(dir.path(), material, &[texel]);
         let scene = crate::load_scene(&path).unwrap();
         let scene = crate::flatten(&scene.world, &path).unwrap();
         // (The bare model is placed in the seed room: find the quad's slot.)
@@ -249,6 +289,44 @@ mod tests {
             (alpha - roughness * roughness).abs() < 1e-6,
             "alpha {alpha}, roughness {}",
             alpha.sqrt()
+        );
+    }
+
+    #[test]
+    fn specular_textures_scale_the_strength_by_alpha_and_the_colour_by_srgb() {
+        let dir = tempfile::tempdir().unwrap();
+        // A dielectric with specular 0.8 and colour (2, 1.5, 1) (factors above 1 tint F0),
+        // a specular texture of alpha 128 (its RGB unused) and a colour texture of sRGB 188.
+        let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "extensions": {"KHR_materials_specular": {"specularFactor": 0.8,
+                "specularColorFactor": [2.0, 1.5, 1.0],
+                "specularTexture": {"index": 0}, "specularColorTexture": {"index": 1}}}}"#;
+        let strength = image::RgbaImage::from_pixel(1, 1, image::Rgba([9, 9, 9, 128]));
+        let colour = image::RgbaImage::from_pixel(1, 1, image::Rgba([188, 255, 0, 255]));
+        let path = textured_quad(dir.path(), material, &[strength, colour]);
+        let scene = crate::load_scene(&path).unwrap();
+        let scene = crate::flatten(&scene.world, &path).unwrap();
+        let slot = (scene.material.iter())
+            .position(|&m| scene.material_textures[m as usize].specular.is_set())
+            .expect("the quad's material reads the specular texture");
+        let material = scene.material[slot] as usize;
+        assert!(scene.material_textures[material].specular_color.is_set());
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let Bsdf::MetallicRoughness(MetallicRoughness {
+            specular,
+            specular_color,
+            ..
+        }) = bsdf
+        else {
+            panic!("{bsdf:?}")
+        };
+        // Alpha is linear: 0.8 x 128/255; sRGB 188 is linear 0.5029.
+        assert!((specular - 0.8 * 128.0 / 255.0).abs() < 1e-6, "{specular}");
+        let expected = Rgb::new(2.0 * 0.50289, 1.5, 0.0);
+        assert!(
+            (specular_color - expected).abs().max_element() < 1e-4,
+            "{specular_color}"
         );
     }
 }

@@ -58,6 +58,50 @@ fn light_intensities_are_read_in_the_asked_units() {
     }
 }
 
+/// A spot 4 units above the ground and `offset` to the side lights the point the camera sees
+/// at `t = atan(offset / 4)` from its axis. A file Blender wrote gets Blender's Spot Blend back
+/// from its cones (`1 - inner / outer`) and Cycles' smoothstep; any other file glTF's falloff.
+#[test]
+fn a_blender_spot_follows_cycles_blend_and_other_spots_the_gltf_falloff() {
+    let dir = scratch("spot_blend");
+    let (outer, blend) = (30f32.to_radians(), 0.15f32);
+    let inner = outer * (1.0 - blend); // what Blender's exporter writes
+    let light = json!({"type": "spot", "intensity": 683.0,
+        "spot": {"innerConeAngle": inner, "outerConeAngle": outer}});
+    let smoothstep = |x: f32| {
+        let x = x.clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    };
+    for generator in ["Khronos glTF Blender I/O v4.5.51", "some other tool"] {
+        for offset in [0.0f32, 1.5, 1.8, 2.0, 2.2] {
+            let mut doc = punctual_light_doc(light.clone(), 4.0);
+            doc["nodes"][2]["translation"] = json!([offset, 4.0, 0.0]);
+            doc["asset"]["generator"] = json!(generator);
+            let path = write_gltf(&dir, "spot.gltf", &doc);
+            let scene = wavetrace::load_scene(&path).unwrap();
+            let flat = flatten(&scene.world, &path).unwrap();
+            let (r2, cos) = (
+                16.0 + offset * offset,
+                4.0 / (16.0 + offset * offset).sqrt(),
+            );
+            let (co, ci) = (outer.cos(), inner.cos());
+            let attenuation = if generator.starts_with("Khronos glTF Blender I/O") {
+                smoothstep((cos - co) / ((1.0 - co) * blend))
+            } else {
+                ((cos - co) / (ci - co)).clamp(0.0, 1.0).powi(2)
+            };
+            let expected = 0.5 / PI * attenuation * cos / r2;
+            // Near the outer cone the ramp is steep and the pixels see a little around the
+            // point: 1e-3 of the value (the two falloffs differ there by a factor of 2).
+            let got = render_mean(&flat);
+            assert!(
+                (got - Rgb::splat(expected)).abs().max_element() <= 1e-3 * expected,
+                "{generator}, offset {offset}: {got} against {expected}"
+            );
+        }
+    }
+}
+
 /// A 100 x 100 grey ground with a 0.1-unit emissive triangle above it, with or without a
 /// camera.
 fn glowing_model(with_camera: bool) -> serde_json::Value {

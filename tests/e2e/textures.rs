@@ -589,3 +589,86 @@ fn normal_maps_gain_no_energy_in_a_white_furnace() {
         }
     }
 }
+
+/// A texture shared by two slots is decoded once per encoding its slots need: an ORM image
+/// (occlusion R, roughness G, metallic B) read as occlusion and metallic-roughness stays
+/// linear with its channels as stored; one image read as base colour and metallic-roughness
+/// is sRGB-decoded for the colour and linear for the data, two textures in the render scene.
+#[test]
+fn a_texture_shared_by_two_slots_is_decoded_for_each_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Buffer::default();
+    let mut meshes = Vec::new();
+    let orm_mesh = quad(&mut b, &mut meshes, -1.0, 0.0, 0.0, false, 0);
+    let shared_mesh = quad(&mut b, &mut meshes, 0.0, 1.0, 0.0, false, 1);
+    let doc = json!({
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"name": "orm", "mesh": orm_mesh}, {"name": "shared", "mesh": shared_mesh}],
+        "materials": [
+            {"name": "orm", "occlusionTexture": {"index": 0},
+             "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 0}}},
+            {"name": "shared", "pbrMetallicRoughness": {
+                "baseColorTexture": {"index": 1}, "metallicRoughnessTexture": {"index": 1}}}
+        ],
+        "meshes": meshes,
+        "images": [{"uri": "orm.png"}, {"uri": "shared.png"}],
+        "textures": [{"source": 0, "sampler": 0}, {"source": 1, "sampler": 0}],
+        "samplers": [{"magFilter": 9728, "wrapS": 33071, "wrapT": 33071}]
+    });
+    // Distinct values in every channel, so that a swapped channel or a wrong transfer
+    // function shows.
+    let texel = [51u8, 153, 230];
+    let images = [
+        (
+            "orm.png",
+            image::RgbImage::from_pixel(2, 2, image::Rgb(texel)),
+        ),
+        (
+            "shared.png",
+            image::RgbImage::from_pixel(2, 2, image::Rgb(texel)),
+        ),
+    ];
+    let path = write_gltf(dir.path(), "shared", doc, b, &images);
+    let scene = load_scene(&path).expect("loads");
+    let occlusion_warnings = scene.warnings.iter().filter(|w| w.contains("occlusion"));
+    assert_eq!(occlusion_warnings.count(), 1, "{:?}", scene.warnings);
+    let flat = flatten(&scene.world, &path).expect("flattens");
+
+    let linear = texel.map(|c| c as f32 / 255.0);
+    let srgb = linear.map(|c| ((c + 0.055) / 1.055).powf(2.4));
+    let uv = wavetrace::math::Vec2::splat(0.5);
+    let value =
+        |r: &wavetrace::internals::TextureRef| flat.textures()[r.texture as usize].lookup(uv);
+    let close = |got: wavetrace::math::Rgb, want: [f32; 3]| {
+        (got - wavetrace::math::Rgb::from_array(want))
+            .abs()
+            .max_element()
+            < 1e-5
+    };
+    // (The bare model is placed in the room, whose materials read no texture.)
+    let orm = (flat.material_textures().iter())
+        .find(|t| t.metallic_roughness.is_set() && !t.base_color.is_set());
+    let orm = orm.expect("the ORM material");
+    assert!(
+        close(value(&orm.metallic_roughness), linear),
+        "ORM: linear R, G, B"
+    );
+    let shared = flat
+        .material_textures()
+        .iter()
+        .find(|t| t.base_color.is_set());
+    let shared = shared.expect("the shared material");
+    assert!(
+        close(value(&shared.base_color), srgb),
+        "base colour: sRGB-decoded"
+    );
+    assert!(
+        close(value(&shared.metallic_roughness), linear),
+        "metallic-roughness: linear"
+    );
+    assert_ne!(
+        shared.base_color.texture, shared.metallic_roughness.texture,
+        "one texture per encoding"
+    );
+    assert_eq!(flat.textures().len(), 3);
+}

@@ -324,6 +324,11 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
             .count(),
     );
     count(
+        "KHR_materials_transmission textures (transmissionTexture) are ignored: the factor \
+         applies everywhere",
+        with_keys("KHR_materials_transmission", &["transmissionTexture"]),
+    );
+    count(
         "KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is ignored: the \
          path tracer measures the distance travelled inside the object",
         with_keys(

@@ -6,7 +6,7 @@
 use super::check::{check_perspective, node_location};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Rgb, Vec3};
-use crate::scene::{Camera, Name, PunctualLight, Transform};
+use crate::scene::{Camera, Name, PunctualLight, SpotFalloff, Transform};
 use gltf::khr_lights_punctual::Kind as LightKind;
 use std::path::Path;
 
@@ -65,6 +65,7 @@ pub(super) fn spawn_light(
     name: &str,
     world_from_node: Affine3A,
     path: &Path,
+    document: &gltf::Document,
 ) -> Result<Option<hecs::Entity>> {
     let Some(light) = node.light() else {
         return Ok(None);
@@ -80,6 +81,7 @@ pub(super) fn spawn_light(
             intensity: colour,
             inner_cone: inner_cone_angle,
             outer_cone: outer_cone_angle,
+            falloff: spot_falloff(document, inner_cone_angle, outer_cone_angle),
         },
     };
     if !colour.is_finite() || colour.min_element() < 0.0 {
@@ -94,4 +96,18 @@ pub(super) fn spawn_light(
         Transform(world_from_node),
         punctual,
     ))))
+}
+
+/// How a spot's intensity falls between its cones: glTF's falloff, or, in a file Blender's
+/// exporter wrote (`asset.generator` "Khronos glTF Blender I/O ..."), the Spot Blend that
+/// Blender's importer recovers, `1 - inner / outer` (the exporter writes
+/// `inner = outer (1 - blend)`), rendered with Cycles' smoothstep.
+fn spot_falloff(document: &gltf::Document, inner: f32, outer: f32) -> SpotFalloff {
+    let generator = document.as_json().asset.generator.as_deref();
+    if !generator.is_some_and(|g| g.starts_with("Khronos glTF Blender I/O")) || outer <= 0.0 {
+        return SpotFalloff::Gltf;
+    }
+    SpotFalloff::Blender {
+        blend: (1.0 - inner / outer).clamp(0.0, 1.0),
+    }
 }

@@ -249,6 +249,7 @@ fn material_textures(
     let name = m.name().unwrap_or("unnamed");
     let pbr = m.pbr_metallic_roughness();
     let normal = m.normal_texture();
+    let specular = m.specular();
     let (base_color_slot, metallic_roughness_slot) = match spec_gloss {
         // The diffuse texture stands for the base colour; the specular-glossiness texture
         // has no metallic-roughness equivalent texel by texel (warned once per file).
@@ -281,9 +282,22 @@ fn material_textures(
             )
         }),
         info_slot(textures, m.emissive_texture(), Encoding::Srgb),
+        specular
+            .as_ref()
+            .and_then(|s| info_slot(textures, s.specular_texture(), Encoding::Linear)),
+        specular
+            .as_ref()
+            .and_then(|s| info_slot(textures, s.specular_color_texture(), Encoding::Srgb)),
     ];
     let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
-    let [base_color, metallic_roughness, normal_map, emissive] = slots.map(|slot| {
+    let [
+        base_color,
+        metallic_roughness,
+        normal_map,
+        emissive,
+        specular_map,
+        specular_color_map,
+    ] = slots.map(|slot| {
         let (slot, set) = slot?;
         if Some(set) != uv_set {
             warnings.push(format!(
@@ -301,6 +315,8 @@ fn material_textures(
         normal: normal_map,
         normal_scale: normal.map_or(1.0, |n| n.scale()),
         emissive,
+        specular: specular_map,
+        specular_color: specular_color_map,
     };
     (textures, uv_set)
 }

@@ -146,7 +146,14 @@ pub(super) fn spawn_nodes(
                 Placed::Camera,
             );
         }
-        if let Some(entity) = spawn_light(&mut walk.world, &node, &name, world_from_node, path)? {
+        if let Some(entity) = spawn_light(
+            &mut walk.world,
+            &node,
+            &name,
+            world_from_node,
+            path,
+            document,
+        )? {
             animation::bind(
                 &mut walk.world,
                 entity,

@@ -17,13 +17,22 @@ use std::sync::Arc;
 pub(super) type TextureTable = HashMap<(usize, Encoding), Arc<Texture>>;
 
 /// Every texture a material reads, with the encoding of its use: colour textures (base
-/// colour, emission) are sRGB, data textures (metallic-roughness, normal) linear.
+/// colour, emission, specular colour) are sRGB, data textures (metallic-roughness, normal,
+/// specular strength) linear.
 fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
     let mut uses = Vec::new();
     for m in document.materials() {
         let pbr = m.pbr_metallic_roughness();
-        let srgb = [pbr.base_color_texture(), m.emissive_texture()];
-        let linear = [pbr.metallic_roughness_texture()];
+        let specular = m.specular();
+        let srgb = [
+            pbr.base_color_texture(),
+            m.emissive_texture(),
+            specular.as_ref().and_then(|s| s.specular_color_texture()),
+        ];
+        let linear = [
+            pbr.metallic_roughness_texture(),
+            specular.as_ref().and_then(|s| s.specular_texture()),
+        ];
         for info in srgb.into_iter().flatten() {
             uses.push((info.texture().index(), Encoding::Srgb));
         }
