@@ -4,7 +4,7 @@
 //! reference answers.
 //!
 //! ```text
-//! cargo run --release --example cast_rays -- DIR SCENE [--repeats N] [--limit N] [--sets a,b]
+//! cargo run --release --features examples --example cast_rays -- DIR SCENE [--repeats N] [--limit N] [--sets a,b]
 //! ```
 //! `DIR` is the output directory of `raysets.py gen` (+ `bench --save-ref`); `SCENE` is
 //! `room`, `mesh1m` or `mesh5m`. `--limit N` casts only the first `N` rays of each set and

@@ -3,7 +3,7 @@
 //! `docs/importing.md`.
 //!
 //! ```text
-//! cargo run --release --example coverage -- [--up z] [--size N] MODEL...
+//! cargo run --release --features examples --example coverage -- [--up z] [--size N] MODEL...
 //! ```
 //!
 //! Each model is placed exactly as the command line places it (`place_in_room`), then, as in

@@ -7,7 +7,7 @@
 //! 1/time alike).
 //!
 //! ```text
-//! cargo run --release --example equal_time -- scenes/room.toml --reference ref.exr \
+//! cargo run --release --features examples --example equal_time -- scenes/room.toml --reference ref.exr \
 //!     (--spp 16 | --time 4s | both) [--seeds 4] [--seed S] [--sampler independent|sobol] \
 //!     [--noise-threshold T [--min-spp N]] [--shadow-rays N] [--roulette-min-bounces N] \
 //!     [--no-mis] [--caustic-paths N] [--no-caustic-connections] [--threads N] [--write out.exr]

@@ -2,7 +2,7 @@
 //! MSE and the share of the squared error in the worst 1% of pixels (see
 //! `examples/common/image_error.rs`), for noise comparisons (README, "Multiple importance sampling").
 //!
-//! `cargo run --release --example image_error -- reference.exr a.exr [b.exr ...]`
+//! `cargo run --release --features examples --example image_error -- reference.exr a.exr [b.exr ...]`
 
 // The error measures, shared with `equal_time` (each example uses part of them).
 #[allow(dead_code)]

@@ -5,7 +5,7 @@
 //! triangle it would need about 30 GB.
 //!
 //! ```text
-//! cargo run --release --example instances -- OUT_DIR [NODES_PER_SIDE [MAJOR MINOR]]
+//! cargo run --release --features examples --example instances -- OUT_DIR [NODES_PER_SIDE [MAJOR MINOR]]
 //! /usr/bin/time -v target/release/wavetrace render OUT_DIR/instances.gltf -o OUT_DIR/instances.png \
 //!     --width 320 --height 240 --spp 4
 //! ```

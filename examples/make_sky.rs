@@ -19,7 +19,7 @@
 //! The scale is set so that level ground receives an irradiance of 3 (luminance): a white
 //! diffuse surface facing up reads about 1 at exposure 0.
 //!
-//! `cargo run --release --example make_sky` writes the file; `-- --preview out.png` also
+//! `cargo run --release --features examples --example make_sky` writes the file; `-- --preview out.png` also
 //! writes a tone-mapped PNG to look at.
 
 use std::f64::consts::PI;

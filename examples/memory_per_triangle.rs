@@ -5,8 +5,8 @@
 //! size (VmHWM, Linux) and that divided by the triangle count.
 //!
 //! ```text
-//! cargo run --release --example memory_per_triangle -- /tmp/mem [SIDE] [--attributes]
-//! WAVETRACE_MEMTRACE=1 cargo run --release --example memory_per_triangle -- /tmp/mem
+//! cargo run --release --features examples --example memory_per_triangle -- /tmp/mem [SIDE] [--attributes]
+//! WAVETRACE_MEMTRACE=1 cargo run --release --features examples --example memory_per_triangle -- /tmp/mem
 //! ```
 //!
 //! SIDE defaults to 1001 (2 million triangles, 75 MB of text). With `WAVETRACE_MEMTRACE` set

@@ -2,7 +2,7 @@
 developer tool, not part of CI). Run it with Blender's Python module:
 
     python3.11 -m venv /tmp/bpyenv/venv && /tmp/bpyenv/venv/bin/pip install 'bpy==4.5.*'
-    cargo build --release --example equal_time --example image_error
+    cargo build --release --features examples --example equal_time --example image_error
     PY=/tmp/bpyenv/venv/bin/python
     $PY tools/cycles_room.py build OUT            # OUT/room.blend and its export OUT/room.glb
     $PY tools/cycles_room.py render OUT/room.blend OUT/ref-cycles.exr --spp 512 --seed 7

@@ -7,7 +7,7 @@ machine's load falls on every arm alike. Prints one line per run, then the media
     python3 tools/equal_time_room.py REFERENCE.exr [--budgets 4 8 16] [--repeats 3] \
         [--threshold 0.02] [--no-mitsuba]
 
-Needs `cargo build --release --example equal_time` (or the dev profile with --profile debug)
+Needs `cargo build --release --features examples --example equal_time` (or the dev profile with --profile debug)
 and, for Mitsuba, `python3 -m pip install mitsuba`. Mitsuba's fastest CPU variant,
 `llvm_ad_rgb` (the default here), needs LLVM's shared library at version 17 or later (15
 and 16 fail to select `fminimum`): on Debian 12 `apt-get install libllvm19` and
