@@ -195,7 +195,7 @@ mod with_denoiser {
     use super::*;
     use wavetrace::RenderSettings;
     use wavetrace::film::Layer;
-    use wavetrace::internals::image_error::image_error;
+    use crate::image_error::image_error;
 
     /// The "done when" figure of issue 33: the room at 256 x 256 and 16 spp, denoised, has at
     /// most 0.05x the relative MSE of the noisy image against a 1024-spp reference (committed,
