@@ -21,12 +21,12 @@ pub const MAX_DEPTH: usize = 64;
 /// on primary rays; reinsertion cost 50-90 ms there for the same primitive tests per ray and
 /// ray rates within noise (2% less inner-node surface area). Small scenes use
 /// `very_slow_build` (reinsertion over every node): their build time is negligible, and in
-/// the seed room it halves the nodes a shadow packet visits (8.6 -> 4.2) and cuts those of a
+/// the hexagonal room it halves the nodes a shadow packet visits (8.6 -> 4.2) and cuts those of a
 /// closest-hit ray from 7.2 to 4.7.
 pub(super) const MAX_LEAF_SIZE: u32 = 4;
 /// Scenes with fewer primitives get one primitive per leaf: they are rooms of large,
 /// overlapping triangles, where merging leaves makes every ray test most of the walls
-/// (measured on the seed room: 14 primitive tests per shadow ray with 4, 0.8 with 1).
+/// (measured on the hexagonal room: 14 primitive tests per shadow ray with 4, 0.8 with 1).
 const SMALL_SCENE: usize = 4096;
 /// Scenes with fewer primitives get obvhs's medium build (with reinsertion passes).
 const MEDIUM_SCENE: usize = 1 << 18;

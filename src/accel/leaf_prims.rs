@@ -339,7 +339,7 @@ pub fn closest_in_node(
 }
 
 /// Scenes of at most this many primitives skip the tree in the closest-hit query (see
-/// [`FlatPrimitives`]). Measured render times against the tree's: -8% in the seed room (28
+/// [`FlatPrimitives`]). Measured render times against the tree's: -8% in the hexagonal room (28
 /// primitives), -2% with 40 (the room and a cube), +3% with 64 (the room and three cubes).
 pub const MAX_FLAT_PRIMITIVES: usize = 48;
 

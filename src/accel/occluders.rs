@@ -3,7 +3,7 @@
 //! A triangle with the whole scene on one side of its plane (every vertex, sphere and
 //! punctual light, and the way to every directional light) bounds the scene: a wall, floor or
 //! ceiling of a convex room. No such segment crosses its plane, so it never blocks one, and the
-//! shadow stage traces a tree over the other primitives only. In the seed room that leaves
+//! shadow stage traces a tree over the other primitives only. In the hexagonal room that leaves
 //! the tetrahedron and the two spheres: one node instead of about four per shadow packet.
 //! (An origin pushed off its surface may lie behind such a plane by that rounding bound; the
 //! plane does not block a ray from there, as the full tree's test might: a band as wide as

@@ -201,7 +201,7 @@ impl Bvh4 {
         let box_max = packet.segments_max.to_array().map(Vec4::splat);
         let occluded = Cell::new(0u32);
         // The rays prepared once for the ray-by-ray confirmation below. Small trees skip it:
-        // there the subtrees it could cut are small too (in the seed room it cost 5% more
+        // there the subtrees it could cut are small too (in the hexagonal room it cost 5% more
         // instructions per path and saved nothing).
         let box_rays: Option<[BoxRay; PACKET_SIZE]> = (self.nodes.len() >= CONFIRMED_PACKET_NODES)
             .then(|| std::array::from_fn(|k| BoxRay::new(origin, directions[k.min(n - 1)])));

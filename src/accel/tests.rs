@@ -183,7 +183,7 @@ fn the_parallel_collapse_makes_the_sequential_tree() {
 
 #[test]
 fn flat_primitives_agree_with_brute_force_in_a_tiny_scene() {
-    // 28 primitives (the seed room's count), four of them spheres: seven groups of
+    // 28 primitives (the hexagonal room's count), four of them spheres: seven groups of
     // triangles, the last one partly empty.
     let (shapes, _) = random_scene(28);
     let prims: Vec<LeafPrim> = shapes.iter().map(LeafPrim::new).collect();

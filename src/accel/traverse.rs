@@ -18,7 +18,7 @@ const fn stack_len(depth: usize) -> usize {
 
 /// The stack of every traversal (closest hit, occlusion, packets), kept by the caller and
 /// reused ray after ray: a fresh zeroed stack per ray cost about 6% of a closest-hit ray's
-/// instructions in the seed room. Deep enough for any tree the build accepts ([`MAX_DEPTH`]).
+/// instructions in the hexagonal room. Deep enough for any tree the build accepts ([`MAX_DEPTH`]).
 pub struct TraversalStack([u64; stack_len(MAX_DEPTH)]);
 
 impl Default for TraversalStack {

@@ -591,7 +591,7 @@ mod tests {
 
     #[test]
     fn points_behind_all_lights_get_no_light_from_any_sample() {
-        // The seed room's light: a quad at z = 4.99 facing down, its two triangles coplanar.
+        // The hexagonal room's light: a quad at z = 4.99 facing down, its two triangles coplanar.
         let [a, b, c, d] =
             [[4.0, 1.0], [6.0, 1.0], [6.0, -1.0], [4.0, -1.0]].map(|[x, y]| Vec3A::new(x, y, 4.99));
         let light = |p: [Vec3A; 3]| {

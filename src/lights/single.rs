@@ -4,10 +4,10 @@
 use super::*;
 
 /// The scene's only light, when it is one triangle, or two triangles of one emitter that
-/// make a parallelogram (a quad light, as the seed room's and most modelled area lights
+/// make a parallelogram (a quad light, as the hexagonal room's and most modelled area lights
 /// are), sampled uniformly by area like its triangles. Every lane samples it, so its data
 /// are splatted once instead of gathered lane by lane, and a parallelogram needs neither the
-/// choice of a triangle nor the triangle warp: the seed room's shade stage runs a quarter
+/// choice of a triangle nor the triangle warp: the hexagonal room's shade stage runs a quarter
 /// fewer instructions.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct SingleLight {

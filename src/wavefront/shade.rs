@@ -98,7 +98,7 @@ mod tests {
     use crate::settings::RenderSettings;
 
     /// The shading path of opaque scenes (no work for transmission or media) renders the
-    /// same image as the general path, bit for bit, on the seed room (diffuse walls, a
+    /// same image as the general path, bit for bit, on the hexagonal room (diffuse walls, a
     /// mirror and a smooth glass sphere, whose delta lobes need no shadow rays through them).
     #[test]
     fn the_opaque_scene_path_renders_what_the_general_path_renders() {

@@ -261,7 +261,7 @@ mod tests {
         let path = textured_quad(dir.path(), material, &[texel]);
         let scene = crate::load_scene(&path).unwrap();
         let scene = crate::flatten(&scene.world, &path).unwrap();
-        // (The bare model is placed in the seed room: find the quad's slot.)
+        // (The bare model is placed in the hexagonal room: find the quad's slot.)
         let slot = (scene.material.iter())
             .position(|&m| {
                 scene.material_textures[m as usize]

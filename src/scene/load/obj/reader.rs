@@ -5,7 +5,7 @@
 //!
 //! Our own reader rather than tobj's (tobj still reads the MTL files): tobj has no streaming
 //! or memory-bounded mode; it keeps a 104-byte record per face and a map of every distinct
-//! vertex until the end of the file, about 200 bytes per face on top of the text (issue 21).
+//! vertex until the end of the file, about 200 bytes per face on top of the text.
 //!
 //! Rules, those of the OBJ format as tobj and Blender read it: a line ending in `\` continues
 //! on the next; index 0 is invalid; a negative index counts back from the last element
