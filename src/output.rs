@@ -110,17 +110,10 @@ pub fn write_exr_layers(path: &Path, color: &Image, layers: &[NamedLayer]) -> Re
         channels,
     ));
     write_atomically(path, |out| {
-        image.write().to_buffered(out).map_err(|e| match e {
-            exr::error::Error::Io(source) => Error::Io {
-                path: path.to_path_buf(),
-                action: "cannot write",
-                source,
-            },
-            other => Error::Encode {
-                path: path.to_path_buf(),
-                message: other.to_string(),
-            },
-        })
+        image
+            .write()
+            .to_buffered(out)
+            .map_err(|e| exr_write_error(path, e))
     })
 }
 
@@ -249,17 +242,7 @@ fn encode_exr(out: &mut (impl Write + Seek), path: &Path, image: &impl Pixels) -
     ExrImage::from_encoded_channels((w, height as usize), encoding, channels)
         .write()
         .to_buffered(out)
-        .map_err(|e| match e {
-            exr::error::Error::Io(source) => Error::Io {
-                path: path.to_path_buf(),
-                action: "cannot write",
-                source,
-            },
-            other => Error::Encode {
-                path: path.to_path_buf(),
-                message: other.to_string(),
-            },
-        })
+        .map_err(|e| exr_write_error(path, e))
 }
 
 /// Reads a linear RGB OpenEXR file (used by tests and comparisons).
@@ -285,6 +268,21 @@ pub fn read_exr(path: &Path) -> Result<Image> {
         height: size.height() as u32,
         pixels: img.layer_data.channel_data.pixels.1,
     })
+}
+
+/// The error of a failed EXR write: the disk's (full, unwritable) or the encoder's.
+fn exr_write_error(path: &Path, e: exr::error::Error) -> Error {
+    match e {
+        exr::error::Error::Io(source) => Error::Io {
+            path: path.to_path_buf(),
+            action: "cannot write",
+            source,
+        },
+        other => Error::Encode {
+            path: path.to_path_buf(),
+            message: other.to_string(),
+        },
+    }
 }
 
 #[cfg(test)]

@@ -425,7 +425,7 @@ impl Scene {
                 }
                 AnimatedTarget::Camera => {
                     if let Some(c) = camera {
-                        *c = camera_at(&animated.placed(world_from_node), c);
+                        *c = gltf_animation::camera_at(&animated.placed(world_from_node), c);
                     }
                 }
                 AnimatedTarget::Deformed {
@@ -464,23 +464,6 @@ impl Scene {
             }
         }
         Ok(warnings)
-    }
-}
-
-/// A glTF camera (looking down its node's -Z with +Y up) at `world_from_node`, keeping the
-/// lens of `lens`. The same construction as the loader's.
-fn camera_at(world_from_node: &Affine3A, lens: &Camera) -> Camera {
-    let eye = world_from_node.transform_point3(Vec3::ZERO);
-    let forward = world_from_node
-        .transform_vector3(Vec3::NEG_Z)
-        .normalize_or(Vec3::NEG_Z);
-    let up_hint = world_from_node.transform_vector3(Vec3::Y);
-    let right = forward.cross(up_hint).normalize_or(Vec3::X);
-    Camera {
-        eye,
-        forward,
-        up: right.cross(forward),
-        ..*lens
     }
 }
 

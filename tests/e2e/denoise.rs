@@ -193,9 +193,9 @@ fn denoise_in_a_build_without_the_denoiser_is_a_usage_error() {
 #[cfg(feature = "denoise")]
 mod with_denoiser {
     use super::*;
+    use crate::image_error::image_error;
     use wavetrace::RenderSettings;
     use wavetrace::film::Layer;
-    use crate::image_error::image_error;
 
     /// The "done when" figure of issue 33: the room at 256 x 256 and 16 spp, denoised, has at
     /// most 0.05x the relative MSE of the noisy image against a 1024-spp reference (committed,

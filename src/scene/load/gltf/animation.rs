@@ -18,6 +18,7 @@
 
 use super::accessors::read_floats;
 use super::deform::{Vertices, apply_morph_targets, apply_skin, joint_matrices};
+pub(crate) use super::lights_cameras::camera_at;
 use crate::math::{Affine3A, Mat4, Quat, Vec3, Vec4};
 use crate::scene::animation::{
     Animated, AnimatedTarget, Channel, Clip, Interpolation, Keyframes, Pose, Property, Rig, RigNode,

@@ -42,6 +42,19 @@ pub(super) fn spawn_camera(
 
 /// A glTF camera (looking down its node's -Z with +Y up) in world space.
 fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camera {
+    let lens = Camera {
+        eye: Vec3::ZERO,
+        forward: Vec3::NEG_Z,
+        up: Vec3::Y,
+        vfov: p.yfov(),
+        aspect_ratio: p.aspect_ratio(),
+    };
+    camera_at(world_from_node, &lens)
+}
+
+/// A glTF camera (looking down its node's -Z with +Y up) at `world_from_node`, with the lens
+/// (field of view, aspect ratio) of `lens`; an animation's pose places its cameras with it.
+pub(crate) fn camera_at(world_from_node: &Affine3A, lens: &Camera) -> Camera {
     let eye = world_from_node.transform_point3(Vec3::ZERO);
     let forward = world_from_node
         .transform_vector3(Vec3::NEG_Z)
@@ -52,8 +65,7 @@ fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camer
         eye,
         forward,
         up: right.cross(forward),
-        vfov: p.yfov(),
-        aspect_ratio: p.aspect_ratio(),
+        ..*lens
     }
 }
 
