@@ -226,19 +226,25 @@ radius = 0.25
     .toml()
 }
 
+/// The whole image's mean and the mean of the caustic the glass sphere casts on the floor
+/// (a 128 x 128 render shows it at columns 60-70, rows 80-90), each with its standard error
+/// from two renders with different seeds.
+fn image_and_caustic_estimates(
+    scene: &RenderScene,
+    settings: &RenderSettings,
+) -> Vec<([f64; 3], [f64; 3])> {
+    let (x0, y0) = (14, 19);
+    let (a, b) = independent_pair(scene, settings);
+    vec![
+        mean_and_error(&a, &b),
+        block_estimate(&a, &b, x0..x0 + 4, y0..y0 + 4),
+    ]
+}
+
 #[test]
 fn glass_caustic_with_light_paths_equals_the_path_tracer_alone() {
     let scene = glass_caustic_scene();
-    // The block of the caustic the glass sphere casts on the floor (a 128 x 128 render shows
-    // it at columns 60-70, rows 80-90).
-    let (x0, y0) = (14, 19);
-    let both = |settings: &RenderSettings| {
-        let (a, b) = independent_pair(&scene, settings);
-        vec![
-            mean_and_error(&a, &b),
-            block_estimate(&a, &b, x0..x0 + 4, y0..y0 + 4),
-        ]
-    };
+    let both = |settings: &RenderSettings| image_and_caustic_estimates(&scene, settings);
     let with = both(&settings(128, 1.0));
     let without = both(&settings(512, 0.0));
     assert_parts_agree("glass caustic", ["image", "caustic"], with, without);
@@ -249,14 +255,7 @@ fn glass_caustic_with_light_paths_equals_the_path_tracer_alone_under_a_wide_filt
     // The light paths' splats are spread over the pixels by the filter's density; the camera
     // samples of those pixels land around them by the same density.
     let scene = glass_caustic_scene();
-    let (x0, y0) = (14, 19);
-    let both = |settings: &RenderSettings| {
-        let (a, b) = independent_pair(&scene, settings);
-        vec![
-            mean_and_error(&a, &b),
-            block_estimate(&a, &b, x0..x0 + 4, y0..y0 + 4),
-        ]
-    };
+    let both = |settings: &RenderSettings| image_and_caustic_estimates(&scene, settings);
     let filtered = |spp, caustic_paths| RenderSettings {
         filter: wavetrace::PixelFilter::CYCLES,
         ..settings(spp, caustic_paths)
