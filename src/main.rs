@@ -159,6 +159,12 @@ struct RenderArgs {
     /// an area, point or spot light trace them.
     #[arg(long, value_parser = parse_caustic_paths)]
     caustic_paths: Option<f32>,
+    /// Radius, in pixels, within which the light paths' points are merged at points seen
+    /// through a mirror or smooth glass (caustics behind a delta vertex; default 3; the
+    /// radius shrinks with the passes, so the image converges as without it); 0 turns
+    /// merging off.
+    #[arg(long, value_parser = parse_merge_radius)]
+    merge_radius: Option<f32>,
     /// Pixel reconstruction filter: box, gaussian or blackman-harris (default: the scene
     /// file's, else box; a model file (glTF, OBJ) takes Cycles' blackman-harris of 1.5 px).
     #[arg(long, value_enum)]
@@ -362,6 +368,17 @@ fn parse_caustic_paths(text: &str) -> std::result::Result<f32, String> {
         ));
     }
     Ok(paths)
+}
+
+fn parse_merge_radius(text: &str) -> std::result::Result<f32, String> {
+    use wavetrace::settings::MAX_MERGE_RADIUS;
+    let radius: f32 = text.parse().map_err(|e| format!("{e}"))?;
+    if !(0.0..=MAX_MERGE_RADIUS).contains(&radius) {
+        return Err(format!(
+            "the merge radius must lie in 0..={MAX_MERGE_RADIUS} pixels, got {text}"
+        ));
+    }
+    Ok(radius)
 }
 
 fn parse_time_budget(text: &str) -> std::result::Result<Duration, String> {
@@ -869,6 +886,7 @@ fn frame_settings(
         noise_threshold: args.noise_threshold,
         min_spp: args.min_spp,
         caustic_paths: args.caustic_paths,
+        merge_radius: args.merge_radius,
         filter: args.filter.map(Into::into),
         filter_width: args.filter_width,
     };

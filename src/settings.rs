@@ -129,6 +129,11 @@ pub struct RenderSettings {
     /// seen after a diffuse bounce, `wavefront::light_vertices`), when light paths run. On by
     /// default; the examples and tests turn it off to compare (no flag of the command line).
     pub caustic_connections: bool,
+    /// The first pass's radius, in camera pixels, within which light vertices are merged at
+    /// camera vertices reached through a mirror or smooth glass (caustics seen behind a delta
+    /// vertex, `wavefront::merging`; the radius shrinks with the passes, so the image still
+    /// converges to the path tracer's); 0 turns merging off. Merging runs when light paths do.
+    pub caustic_merge_radius: f32,
     /// The pixel reconstruction filter, by filter importance sampling ([`crate::filter`]):
     /// where each camera sample falls around its pixel. The box of 1 px (each sample inside
     /// its pixel) by default; the command line gives model files Cycles' Blackman-Harris of
@@ -145,6 +150,12 @@ pub struct RenderSettings {
 /// left is caustics seen through diffuse bounces), so the fewest rays win (docs/sampling.md,
 /// section 7).
 pub const DEFAULT_CAUSTIC_PATHS: f32 = 0.25;
+
+/// Default merge radius of the first pass, in pixels (docs/sampling.md, section 8).
+pub const DEFAULT_MERGE_RADIUS: f32 = 3.0;
+
+/// Largest merge radius, in pixels.
+pub const MAX_MERGE_RADIUS: f32 = 64.0;
 
 /// Most light paths per pixel and pass.
 pub const MAX_CAUSTIC_PATHS: f32 = 64.0;
@@ -165,6 +176,7 @@ impl Default for RenderSettings {
             max_depth: 1024,
             caustic_paths: DEFAULT_CAUSTIC_PATHS,
             caustic_connections: true,
+            caustic_merge_radius: DEFAULT_MERGE_RADIUS,
             filter: PixelFilter::BOX,
             record_aovs: false,
         }
@@ -197,6 +209,8 @@ pub struct RenderOverrides {
     pub min_spp: Option<u32>,
     /// Light paths per pixel and pass for caustics; 0 turns them off.
     pub caustic_paths: Option<f32>,
+    /// The first pass's merge radius in pixels; 0 turns merging off.
+    pub merge_radius: Option<f32>,
     /// The pixel filter's shape.
     pub filter: Option<FilterKind>,
     /// The pixel filter's width in pixels.
@@ -274,6 +288,7 @@ impl RenderSettings {
                 .or(scene.sampler)
                 .unwrap_or(defaults.sampler),
             caustic_paths: overrides.caustic_paths.unwrap_or(defaults.caustic_paths),
+            caustic_merge_radius: (overrides.merge_radius).unwrap_or(defaults.caustic_merge_radius),
             filter: resolve_filter(scene, overrides),
             ..defaults
         }
@@ -328,6 +343,12 @@ impl RenderSettings {
             return bad(format!(
                 "caustic light paths per pixel must lie in 0..={MAX_CAUSTIC_PATHS}, got {}",
                 self.caustic_paths
+            ));
+        }
+        if !(0.0..=MAX_MERGE_RADIUS).contains(&self.caustic_merge_radius) {
+            return bad(format!(
+                "the merge radius must lie in 0..={MAX_MERGE_RADIUS} pixels, got {}",
+                self.caustic_merge_radius
             ));
         }
         if let Err(message) = PixelFilter::check_width(self.filter.width) {

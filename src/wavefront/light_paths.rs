@@ -104,7 +104,7 @@ const PATHS_PER_JOB: u64 = 4096;
 
 /// Traces the pass's light paths and writes their splats, summed per pixel in path order,
 /// into `splats` (one per pixel of the film, cleared first), and, with
-/// `settings.caustic_connections`, their diffuse end points in path order into
+/// `settings.caustic_connections` or merging, their diffuse end points in path order into
 /// `light_vertices` (cleared first). Returns the rays traced.
 pub fn trace_light_paths(
     scene: &RenderScene,
@@ -128,7 +128,7 @@ pub fn trace_light_paths(
         pass,
         light_paths: path_count as f32,
         max_delta_bounces: settings.max_depth.saturating_sub(2),
-        keep_vertices: settings.caustic_connections,
+        keep_vertices: settings.caustic_connections || settings.caustic_merge_radius > 0.0,
     };
     let jobs: Vec<JobOutput> = (0..path_count.div_ceil(PATHS_PER_JOB))
         .into_par_iter()
@@ -174,7 +174,7 @@ struct LightTracer<'a> {
     /// Most delta bounces before the diffuse point: the path tracer's depth cap leaves it
     /// room for the camera's hit, these bounces and the light.
     max_delta_bounces: u32,
-    /// Whether the diffuse points are kept for connections from camera vertices.
+    /// Whether the diffuse points are kept for connections from camera vertices and merges.
     keep_vertices: bool,
 }
 

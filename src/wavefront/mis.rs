@@ -6,7 +6,8 @@
 //! - the path tracer against the light paths for caustics (the balance heuristic,
 //!   `1 / (1 + r)` and `r / (1 + r)` with `r = n p_LT / p_PT`; the derivation is in
 //!   [`super::light_paths`] and [`super::light_vertices`]): [`camera_vertex_factor`],
-//!   [`mis_ratio`], [`path_tracer_weight`] and [`light_tracer_weight`]. Both sides compute `r`
+//!   [`mis_ratio`], [`path_tracer_weight`] and [`light_tracer_weight`]; merging of light
+//!   vertices ([`super::merging`]) takes the same ratio with [`merge_vertex_factor`]. Both sides compute `r`
 //!   with these functions from the same quantities, so their weights sum to one for every
 //!   path.
 
@@ -75,6 +76,24 @@ pub(super) fn camera_vertex_factor(
     let camera_area_density = direction_density * to_camera_cos / (distance * distance);
     let factor = cos_x1 / (bsdf_pdf * camera_area_density);
     if factor.is_finite() { factor } else { 0.0 }
+}
+
+/// The merging vertex's part of the light tracer's MIS ratio
+/// ([`super::merging`]): `n_L pi r^2 cos_x1 / p_bsdf(w1)`, merging's density of the
+/// direction `w1` at `x1` over the path tracer's, without the light's factors (which
+/// [`mis_ratio`] adds). `cos_x1 = |ng . w1|`; infinite where the BSDF cannot sample `w1`.
+#[inline]
+pub(super) fn merge_vertex_factor(
+    light_paths: f32,
+    radius: f32,
+    cos_x1: f32,
+    bsdf_pdf: f32,
+) -> f32 {
+    if bsdf_pdf > 0.0 {
+        light_paths * std::f32::consts::PI * radius * radius * cos_x1 / bsdf_pdf
+    } else {
+        f32::INFINITY
+    }
 }
 
 /// The emission density over the cosine at the light, `p_emit(w0) / cos_y0`, of an area light.

@@ -20,6 +20,7 @@ pub mod intersect;
 mod light_paths;
 mod light_vertices;
 mod medium;
+mod merging;
 mod mis;
 mod next_event;
 pub mod params;
@@ -37,6 +38,7 @@ use crate::render_scene::RenderScene;
 use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use light_vertices::LightVertex;
+use merging::{LightVertexGrid, Merging};
 use params::{CausticWeights, ShadeParams};
 use rayon::prelude::*;
 use stats::RenderStats;
@@ -171,6 +173,15 @@ pub fn render_rows(
     // vertices (empty without connections).
     let mut splats: Vec<Rgb> = Vec::new();
     let mut light_vertices: Vec<LightVertex> = Vec::new();
+    // Merging of light vertices behind delta vertices: the first pass's radius, measured
+    // over the whole image (parts of a frame all find the same), and the pass's grid.
+    let merge_radius = (caustics_traced && settings.caustic_merge_radius > 0.0)
+        .then(|| {
+            let size = (settings.width, settings.height);
+            merging::base_radius(scene, &camera, size, settings.caustic_merge_radius)
+        })
+        .flatten();
+    let mut merge_grid = LightVertexGrid::default();
 
     'passes: for sample_index in 0..settings.spp {
         let caustics = if caustics_traced {
@@ -188,12 +199,22 @@ pub fn render_rows(
                 &mut splats,
                 &mut light_vertices,
             );
+            let merging = merge_radius.map(|base| {
+                let radius = merging::pass_radius(base, sample_index);
+                merge_grid.rebuild(&light_vertices, radius);
+                Merging {
+                    grid: &merge_grid,
+                    vertices: &light_vertices,
+                    light_paths,
+                }
+            });
             stats.light_time += start.elapsed();
             Some(CausticWeights {
                 light_path_count: light_paths,
                 camera,
                 connections,
                 light_vertices: &light_vertices,
+                merging,
             })
         } else {
             None

@@ -2,6 +2,7 @@
 //! settings that shape the estimator, and the pass's light paths for caustics.
 
 use super::light_vertices::LightVertex;
+use super::merging::Merging;
 use crate::camera::PinholeCamera;
 use crate::math::rng::Sampler;
 
@@ -38,6 +39,9 @@ pub struct CausticWeights<'a> {
     /// Whether camera vertices connect to the light vertices (caustics seen after a diffuse
     /// bounce, [`super::light_vertices`]).
     pub connections: bool,
-    /// The pass's light vertices, in path order (empty without connections).
+    /// The pass's light vertices, in path order (empty without connections and merging).
     pub light_vertices: &'a [LightVertex],
+    /// The merging of light vertices at camera vertices reached through a delta bounce
+    /// (caustics seen behind a mirror or glass, [`super::merging`]), if on.
+    pub merging: Option<Merging<'a>>,
 }

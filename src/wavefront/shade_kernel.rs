@@ -6,7 +6,11 @@
 use super::batch::{CausticState, NO_HIT, ShadowSlots};
 use super::light_vertices::{self, CameraVertex};
 use super::medium::{material_absorption, transmittance};
-use super::mis::{camera_vertex_factor, emission_weight, environment_weight, path_tracer_weight};
+use super::merging::{self, MergePoint};
+use super::mis::{
+    camera_vertex_factor, emission_weight, environment_weight, merge_vertex_factor,
+    path_tracer_weight,
+};
 use super::next_event::{
     Media, NextEvent, SHADOW_RAY_SHORTENING, ShadingPoint, sample_lights_front,
     sample_lights_through,
@@ -180,6 +184,27 @@ pub(super) fn shade_one<const THROUGH: bool>(
         connect_light_vertex::<THROUGH>(scene, params, key, &at, throughput, media, shadow);
     }
 
+    // --- Caustic merge: at a point reached through a delta bounce (the camera's first hit
+    // excepted), the pass's light vertices nearby. With light paths MIS is on, so a zero
+    // `bsdf_pdf` after the first hit means the last bounce was delta.
+    if let Some(caustics) = &params.caustics
+        && let Some(merging) = &caustics.merging
+        && bounce > 0
+        && *path.bsdf_pdf == 0.0
+        && !bsdf.is_delta()
+    {
+        let at = MergePoint {
+            p,
+            ng,
+            front,
+            frame,
+            bsdf,
+            wo_local,
+            bounce,
+        };
+        *path.radiance += *path.throughput * merging::merge(scene, merging, &at, params.max_depth);
+    }
+
     // --- BSDF sampling for the next ray.
     let u_lobe = params.sampler.uniform(key, bounce, dim::BSDF_LOBE);
     let Some(sample) = bsdf.sample(
@@ -341,7 +366,8 @@ fn connect_light_vertex<const THROUGH: bool>(
 /// candidate for a light path's diffuse point `x1`, with the part of the MIS ratio the vertex
 /// before it gives (with its strategy's count): the camera connects to the pass's `n` light
 /// paths, a non-delta vertex to one light vertex (`path.bsdf_pdf`, still the density of that
-/// vertex's sample, is 0 after a delta vertex or without MIS: then nothing connects to `x1`).
+/// vertex's sample, is 0 after a delta vertex or without MIS: then nothing connects to `x1`);
+/// after a delta vertex the merge at `x1` itself shares the path ([`super::merging`]).
 /// `cos_ng` are `ng . wi` and `ng . wo` at this vertex, reached by `hit` at `bounce`.
 #[inline(always)]
 fn caustic_state_after(
@@ -368,6 +394,13 @@ fn caustic_state_after(
         }
     } else if caustics.connections && previous_pdf > 0.0 {
         let factor = camera_vertex_factor(cos_x1, sample.pdf, to_previous_cos, hit.t, previous_pdf);
+        CausticState::Pending { factor }
+    } else if let Some(merging) = &caustics.merging
+        && previous_pdf == 0.0
+    {
+        // Reached through a delta bounce: the merge at this vertex shares the caustic.
+        let (paths, radius) = (merging.light_paths as f32, merging.grid.radius());
+        let factor = merge_vertex_factor(paths, radius, cos_x1, sample.pdf);
         CausticState::Pending { factor }
     } else {
         CausticState::None

@@ -15,6 +15,10 @@
 //!   connections' MIS weight set to 1), and in the glass sphere's box, a wall block and the
 //!   image agree with and without the connections and without light paths; so does the
 //!   caustic seen through a pane of frosted glass (connections through its back side).
+//! - **Caustics seen behind a delta vertex** (`wavefront::merging`, light vertices merged at
+//!   camera vertices reached through a mirror): the floor seen in the mirror ceiling, lit only
+//!   through that mirror, equals the twin's floor (closed form; it fails with the merges' MIS
+//!   weight set to 1), and so does the image without merging.
 //! - **Determinism**: the same image on 1 and 3 threads and with two batch sizes.
 
 use crate::common::*;
@@ -59,12 +63,32 @@ mirror = { type = "mirror" }
 black = { type = "diffuse", albedo = [0.0, 0.0, 0.0] }
 "#;
 
+/// What the camera of the mirror scenes looks at (it sits below the light either way).
+#[derive(Clone, Copy)]
+enum View {
+    /// Down at the floor ([`HEADER`]'s camera).
+    Floor,
+    /// Up at the mirror ceiling, in which it sees the floor.
+    Mirror,
+}
+
+impl View {
+    fn header(self) -> String {
+        match self {
+            View::Floor => HEADER.to_string(),
+            View::Mirror => {
+                HEADER.replace("look_at = [0.0, -0.5, 0.0]", "look_at = [0.0, -0.3, 2.0]")
+            }
+        }
+    }
+}
+
 /// Floor at z = 0 (half-width 2); mirror ceiling at z = 2 (`mirror`), or in its place the
 /// mirror image of the scene below it (`twin`): a floor at z = 4 facing down and the light
 /// mirrored to z = 3.5. The area light (half-width 0.2 at z = 0.5) faces up, toward the
 /// mirror, so it never lights the floor directly.
-fn area_light_scene(twin: bool) -> RenderScene {
-    let mut toml = HEADER.to_string();
+fn area_light_scene(twin: bool, view: View) -> RenderScene {
+    let mut toml = view.header();
     toml += &square("floor", "floor", 0.0, 2.0, true, None);
     toml += &square("light", "black", 0.5, 0.2, true, Some(40.0));
     if twin {
@@ -77,15 +101,18 @@ fn area_light_scene(twin: bool) -> RenderScene {
 }
 
 /// The point-light version: a point light at z = 0.5 above a black square (z = 0.45) that
-/// hides it from the floor; the twin has the light mirrored to z = 3.5 and no mirrored
-/// floor. (Light that reaches the floor, goes up to the mirror and down to the floor again
-/// has a second diffuse vertex lit through a delta bounce by a point light: no strategy finds
-/// it, in either scene.)
-fn point_light_scene(twin: bool) -> RenderScene {
-    let mut toml = HEADER.to_string();
+/// hides it from the floor; the twin has the light, the square and the floor mirrored (to
+/// z = 3.5, 3.55 and 4). Light that reaches the floor, goes up to the mirror and down to the
+/// floor again is found by the merges alone (the second floor point is reached through a
+/// delta bounce), in the twin by next-event estimation.
+fn point_light_scene(twin: bool, view: View) -> RenderScene {
+    let mut toml = view.header();
     toml += &square("floor", "floor", 0.0, 2.0, true, None);
     toml += &square("shade", "black", 0.45, 0.3, true, None);
-    if !twin {
+    if twin {
+        toml += &square("mirrored floor", "floor", 4.0, 2.0, false, None);
+        toml += &square("mirrored shade", "black", 3.55, 0.3, false, None);
+    } else {
         toml += &square("mirror", "mirror", 2.0, 2.0, false, None);
     }
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/test-scene.toml");
@@ -169,18 +196,64 @@ fn assert_lit_as_its_twin(label: &str, lit: &RenderScene, twin: &RenderScene, sp
 
 #[test]
 fn area_light_through_a_mirror_equals_its_mirror_image() {
-    let (lit, twin) = (area_light_scene(false), area_light_scene(true));
+    let (lit, twin) = (
+        area_light_scene(false, View::Floor),
+        area_light_scene(true, View::Floor),
+    );
     assert_lit_as_its_twin("the floor (area light)", &lit, &twin, (256, 64));
 }
 
 #[test]
 fn point_light_through_a_mirror_equals_its_mirror_image() {
-    let mirrored_scene = point_light_scene(false);
+    let mirrored_scene = point_light_scene(false, View::Floor);
     // Without light paths the path tracer cannot find this light through the mirror.
     let dark = render_image(&mirrored_scene, &settings(4, 0.0));
     assert!(dark.pixels.iter().all(|p| *p == Rgb::ZERO));
-    let twin = point_light_scene(true);
+    let twin = point_light_scene(true, View::Floor);
     assert_lit_as_its_twin("the floor (point light)", &mirrored_scene, &twin, (64, 16));
+}
+
+/// Caustics seen behind a delta vertex, closed form: the camera looks up at the mirror
+/// ceiling and sees the floor, lit only through the mirror: camera -> mirror -> floor ->
+/// mirror -> light, which only the path tracer and the merges find (for the point light, the
+/// merges alone). It equals the twin, where the mirrored floor is lit by the light directly
+/// (next-event estimation); the area light's also without merging.
+#[test]
+fn floor_seen_in_the_mirror_lit_through_the_mirror_equals_its_mirror_image() {
+    let (lit, twin) = (
+        area_light_scene(false, View::Mirror),
+        area_light_scene(true, View::Mirror),
+    );
+    assert_lit_as_its_twin(
+        "the floor in the mirror (area light)",
+        &lit,
+        &twin,
+        (256, 64),
+    );
+    let without_merging = estimates(
+        &lit,
+        &RenderSettings {
+            caustic_merge_radius: 0.0,
+            ..settings(512, 1.0)
+        },
+    );
+    let twin = estimates(&twin, &settings(64, 1.0));
+    assert_parts_agree(
+        "the floor in the mirror (area light, no merging)",
+        ["image", "centre"],
+        without_merging,
+        twin,
+    );
+    let (lit, twin) = (
+        point_light_scene(false, View::Mirror),
+        point_light_scene(true, View::Mirror),
+    );
+    assert_lit_as_its_twin(
+        "the floor in the mirror (point light)",
+        &lit,
+        &twin,
+        (128, 32),
+    );
 }
 
 /// A box with a small ceiling light and a glass sphere whose caustic falls on the floor in
