@@ -35,6 +35,36 @@ pub fn denoise(color: &Image, albedo: &Image, normal: &Image) -> Result<Image, D
     oidn_filter::denoise(color, albedo, normal)
 }
 
+/// [`denoise`] of `color` without its part `direct` (the light the camera sees directly or
+/// through mirrors and glass, `film::Layer::Emission`), which is added back unchanged. That
+/// part has no noise but the coverage of the lights' edges, which the filter would blur into
+/// their surroundings: on the room at 256x256 (Sobol, denoised default), denoising the whole
+/// colour made the MSE of the pixels on the ceiling light 6x that of the noisy input
+/// (docs/denoising.md).
+pub fn denoise_except(
+    color: &Image,
+    direct: &Image,
+    albedo: &Image,
+    normal: &Image,
+) -> Result<Image, DenoiseError> {
+    if (direct.width, direct.height) != (color.width, color.height) {
+        return Err(DenoiseError(
+            "the emission layer differs in size from the image".into(),
+        ));
+    }
+    let rest = Image {
+        pixels: (color.pixels.iter().zip(&direct.pixels))
+            .map(|(c, d)| *c - *d)
+            .collect(),
+        ..*color
+    };
+    let mut denoised = denoise(&rest, albedo, normal)?;
+    for (p, d) in denoised.pixels.iter_mut().zip(&direct.pixels) {
+        *p += *d;
+    }
+    Ok(denoised)
+}
+
 #[cfg(not(feature = "denoise"))]
 mod oidn_filter {
     use super::{DenoiseError, Image};

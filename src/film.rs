@@ -34,6 +34,9 @@ pub struct AovSample {
     pub normal: Rgb,
     /// Distance from the camera to the camera ray's first hit (0 where it escaped).
     pub depth: f32,
+    /// Light the camera sees directly or through mirrors and glass only (emitters, the
+    /// environment): the part of the colour the denoiser leaves alone.
+    pub emission: Rgb,
 }
 
 /// Per-pixel sums of [`AovSample`]s, in f64 and in sample order like the colour sums.
@@ -42,6 +45,7 @@ pub struct AovSum {
     albedo: [f64; 3],
     normal: [f64; 3],
     depth: f64,
+    emission: [f64; 3],
 }
 
 impl AovSum {
@@ -50,6 +54,7 @@ impl AovSum {
         for c in 0..3 {
             self.albedo[c] += sample.albedo[c] as f64;
             self.normal[c] += sample.normal[c] as f64;
+            self.emission[c] += sample.emission[c] as f64;
         }
         self.depth += sample.depth as f64;
     }
@@ -64,6 +69,8 @@ pub enum Layer {
     Normal,
     /// Mean camera distance of the first hit (x in all three channels).
     Depth,
+    /// Mean light seen directly or through mirrors and glass (part of the colour).
+    Emission,
     /// Samples taken (x in all three channels).
     Samples,
     /// Estimated variance of the pixel's mean, per channel (adaptive sampling only).
@@ -108,7 +115,7 @@ impl Film {
     /// keeps no auxiliary layers, and for the variance on a film without error estimate.
     pub fn layer(&self, layer: Layer) -> Option<Image> {
         let available = match layer {
-            Layer::Albedo | Layer::Normal | Layer::Depth => self.has_aovs(),
+            Layer::Albedo | Layer::Normal | Layer::Depth | Layer::Emission => self.has_aovs(),
             Layer::Samples => true,
             Layer::Variance => !self.odd_sum.is_empty(),
         };
@@ -140,6 +147,7 @@ impl Film {
             Layer::Albedo => mean(self.aov_sum[i].albedo),
             Layer::Normal => mean(self.aov_sum[i].normal).normalize_or_zero(),
             Layer::Depth => Rgb::splat((self.aov_sum[i].depth * inv) as f32),
+            Layer::Emission => mean(self.aov_sum[i].emission),
             Layer::Samples => Rgb::splat(n as f32),
             Layer::Variance => {
                 // The mean of all samples minus the mean of the odd half is half the

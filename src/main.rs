@@ -143,7 +143,7 @@ struct RenderArgs {
     #[arg(long, value_parser = parse_time_budget)]
     time: Option<Duration>,
     /// Random numbers: independent, or Owen-scrambled Sobol points (default: the scene's,
-    /// else independent).
+    /// else sobol).
     #[arg(long, value_enum)]
     sampler: Option<SamplerArg>,
     /// Shadow rays per diffuse hit for next-event estimation (default: the scene's, else 1).
@@ -255,6 +255,9 @@ enum AovName {
     Depth,
     /// The colour before denoising (noisy.R, .G, .B).
     Noisy,
+    /// Light seen directly or through mirrors and glass, the part of the colour the denoiser
+    /// leaves alone (emission.R, .G, .B).
+    Emission,
     /// Samples per pixel (spp.Y).
     Spp,
     /// Estimated variance of the pixel's mean (variance.R, .G, .B).
@@ -270,6 +273,7 @@ impl AovName {
             AovName::Normal => ("normal", &["X", "Y", "Z"], Some(Layer::Normal)),
             AovName::Depth => ("depth", &["Z"], Some(Layer::Depth)),
             AovName::Noisy => ("noisy", &["R", "G", "B"], None),
+            AovName::Emission => ("emission", &["R", "G", "B"], Some(Layer::Emission)),
             AovName::Spp => ("spp", &["Y"], Some(Layer::Samples)),
             AovName::Variance => ("variance", &["R", "G", "B"], Some(Layer::Variance)),
         }
@@ -539,10 +543,14 @@ fn write_output(args: &RenderArgs, output: &Path, film: &Film, denoise: bool) ->
     let noisy = film.resolve();
     let mut color = None;
     if denoise {
-        let guides = (film.layer(Layer::Albedo), film.layer(Layer::Normal));
-        if let (Some(albedo), Some(normal)) = guides {
+        let guides = (
+            film.layer(Layer::Albedo),
+            film.layer(Layer::Normal),
+            film.layer(Layer::Emission),
+        );
+        if let (Some(albedo), Some(normal), Some(direct)) = guides {
             let start = Instant::now();
-            match wavetrace::denoise::denoise(&noisy, &albedo, &normal) {
+            match wavetrace::denoise::denoise_except(&noisy, &direct, &albedo, &normal) {
                 Ok(image) => {
                     if !args.quiet {
                         eprintln!(
@@ -909,10 +917,12 @@ fn frame_settings(
         tune_for_denoiser(args, scene.defaults.spp, &mut settings);
     }
     settings.record_aovs = denoise
-        || args
-            .aov
-            .iter()
-            .any(|a| matches!(a, AovName::Albedo | AovName::Normal | AovName::Depth));
+        || args.aov.iter().any(|a| {
+            matches!(
+                a,
+                AovName::Albedo | AovName::Normal | AovName::Depth | AovName::Emission
+            )
+        });
     if args.aov.contains(&AovName::Variance) && settings.adaptive.is_none() {
         usage_error(
             "--aov variance: the variance is estimated by adaptive sampling, which this \

@@ -113,12 +113,12 @@ pub fn uniform2(key: u64, bounce: u32, dimension: u32) -> Vec2 {
 #[serde(rename_all = "lowercase")]
 pub enum Sampler {
     /// Independent uniform numbers from a counter-based hash.
-    #[default]
     Independent,
     /// Owen-scrambled Sobol points (see [`sobol`]): the samples of a pixel are stratified in
     /// every pattern of [`dim`] (the camera jitter, the BSDF lobe and direction, roulette, the
     /// shift of the shadow rays' lattice) for the first [`SOBOL_BOUNCES`] bounces;
-    /// independent numbers past them.
+    /// independent numbers past them. The default.
+    #[default]
     Sobol,
 }
 

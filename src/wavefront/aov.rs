@@ -1,5 +1,8 @@
 //! Auxiliary values of each path (the denoiser's guides and the `--aov` layers): the albedo and
-//! shading normal at the path's first non-specular hit, and the camera ray's hit distance.
+//! shading normal at the path's first non-specular hit, the camera ray's hit distance, and the
+//! light the path finds before that hit (emitters and the environment seen directly or through
+//! mirrors and glass: exactly what the shade stage adds there, which the denoiser leaves
+//! alone).
 //! Mirrors and smooth glass are followed as Cycles' denoising albedo and normal follow them: the
 //! path goes on through its delta bounces, and their tints multiply the albedo found behind
 //! them. A pass of its own between intersect and shade: it reads the hits, draws no random
@@ -7,6 +10,7 @@
 //! without it.
 
 use super::batch::{HitBatch, NO_HIT, PathState, RayBatch};
+use super::medium::transmittance;
 use super::surface;
 use crate::bsdf::Bsdf;
 use crate::film::AovSample;
@@ -73,10 +77,12 @@ pub fn record_first_surfaces(
         if hits.slot[i] == NO_HIT {
             let seen = bounce > 0 || scene.environment_visible;
             let background = match scene.lights.environment() {
-                Some(environment) if seen => unit_clamped(environment.eval(direction)),
+                Some(environment) if seen => environment.eval(direction),
                 _ => Rgb::ZERO,
             };
-            sample.albedo = aov.tint[i] * background;
+            // As `shade_kernel::escaped` adds it after the camera or delta bounces: in full.
+            sample.emission += paths.throughput[i] * background;
+            sample.albedo = aov.tint[i] * unit_clamped(background);
             sample.normal = Rgb::ZERO;
             aov.pending[i] = false;
             continue;
@@ -96,6 +102,17 @@ pub fn record_first_surfaces(
         let facing = if ns.dot(wo) < 0.0 { -ns } else { ns };
         sample.normal = Rgb::from(facing);
         let emitter = scene.emitter_of(slot);
+        if emitter != NO_EMITTER
+            && (ng.dot(wo) > 0.0 || scene.lights.lights[emitter as usize].two_sided)
+        {
+            // As the shade stage adds it after the camera or delta bounces: in full, after
+            // the absorption along the segment.
+            let mut throughput = paths.throughput[i];
+            if paths.medium[i] != Rgb::ZERO {
+                throughput *= transmittance(paths.medium[i], t);
+            }
+            sample.emission += throughput * surface::emitted_radiance(scene, emitter, barycentric);
+        }
         match bsdf {
             Bsdf::Mirror { tint } | Bsdf::Dielectric { tint, .. } if !bsdf.is_black() => {
                 // Provisional until the path reaches a non-specular surface (it may end here).

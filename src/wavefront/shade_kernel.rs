@@ -1,7 +1,7 @@
 //! The shade stage's per-hit kernel, [`shade_one`]: what one path does at one vertex, phase
 //! by phase as in Mitsuba's `path.cpp` (absorption, emission, next-event estimation, the
-//! connection to a light vertex, BSDF sampling, Russian roulette). The stage's loop over the
-//! batch is in [`super::shade`].
+//! connection to a light vertex, the merge of light vertices behind a delta vertex, BSDF
+//! sampling, Russian roulette). The stage's loop over the batch is in [`super::shade`].
 
 use super::batch::{CausticState, NO_HIT, ShadowSlots};
 use super::light_vertices::{self, CameraVertex};
