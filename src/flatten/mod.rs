@@ -36,12 +36,12 @@ use std::time::Instant;
 
 /// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
 /// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds
-/// about 110 bytes per triangle, 160 with normals and texture coordinates; see
+/// about 73 bytes per triangle, 121 with normals and texture coordinates; see
 /// docs/performance.md, "Memory per triangle"). Kept with a margin.
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 200;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
 /// they are filled, the chunked build's mapped scratch): the 2-million-triangle OBJ's
-/// address space peaks at 0.57 GB (`VmPeak`), about 150 bytes per triangle over its world.
+/// address space peaks at 0.51 GB (`VmPeak`).
 const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 250;
 
 /// Refuses a world whose render scene would not fit in the memory the process can still
