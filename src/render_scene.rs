@@ -70,7 +70,8 @@ pub struct RenderScene {
     pub(crate) alpha_records: Vec<AlphaRecord>,
     /// Material index per slot, into `materials`.
     pub(crate) material: Vec<u32>,
-    /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`].
+    /// Light index per slot, into `lights.lights`, or [`NO_EMITTER`]; empty when no
+    /// primitive emits (read through [`RenderScene::emitter_of`]).
     pub(crate) emitter: Vec<u32>,
     /// Distinct materials.
     pub(crate) materials: Vec<Bsdf>,

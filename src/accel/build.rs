@@ -225,7 +225,11 @@ pub(super) fn build_bvh2_of(
         nodes,
         // obvhs's leaves hold their primitive's index into `primitive_indices` as its place
         // there, so only the identity gives trees whose leaves can be read through it.
-        primitive_indices: (0..count as u32).collect(),
+        primitive_indices: {
+            let mut identity = scratch_vec(count, mapped_scratch);
+            identity.extend(0..count as u32);
+            identity
+        },
         ..Bvh2::default()
     };
     if count == 0 {
@@ -306,7 +310,7 @@ pub(super) struct PlocRun {
 /// they are freed, while smaller freed blocks stay resident (its mmap threshold rises to 32
 /// MiB as large blocks are freed): the chunks' scratch otherwise left 84 MiB of dead memory
 /// beside the scene. Pages never touched cost address space only.
-fn scratch_vec<T>(len: usize, mapped: bool) -> Vec<T> {
+pub(super) fn scratch_vec<T>(len: usize, mapped: bool) -> Vec<T> {
     let room = if mapped {
         len.max(MAPPED_SCRATCH_BYTES / size_of::<T>() + 1)
     } else {

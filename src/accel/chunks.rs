@@ -16,7 +16,7 @@
 //!   first, large primitives merged into leaves where the surface area cost says so.
 
 use super::build::{
-    BinaryTree, Collapsed, Lanes, MAX_DEPTH, Node4, PlocRun, build_bvh2_of, merged_leaf,
+    BinaryTree, Lanes, MAX_DEPTH, Node4, PlocRun, build_bvh2_of, merged_leaf, scratch_vec,
 };
 use obvhs::BvhBuildParams;
 use obvhs::aabb::Aabb;
@@ -65,8 +65,9 @@ impl Boxed {
 }
 
 /// Builds the tree over `count` primitives whose boxes `box_of` gives, in chunks of at most
-/// `chunk_size` primitives; appends its nodes and slot order to `nodes` and `order` and
-/// returns its depth (above [`MAX_DEPTH`] for a tree too deep, which is refused).
+/// `chunk_size` primitives; puts its nodes in `nodes` (empty before), appends its slot
+/// order to `order` and returns its depth (above [`MAX_DEPTH`] for a tree too deep, which
+/// is refused).
 pub(super) fn build_in_chunks(
     count: usize,
     box_of: &(impl Fn(usize) -> Aabb + Sync),
@@ -86,19 +87,11 @@ pub(super) fn build_in_chunks(
         .map(|(_, aabb)| *aabb)
         .chain(boxed[..large].iter().map(Boxed::aabb))
         .collect();
-    let sorted: Vec<u32> = boxed.iter().map(|b| b.index).collect();
+    // Mapped, as every vector of the build that is freed before the scene is done: glibc
+    // keeps smaller freed blocks resident, beside the render scene made next.
+    let mut sorted = scratch_vec(count, true);
+    sorted.extend(boxed.iter().map(|b| b.index));
     drop(boxed);
-    let mut chunks: Vec<Option<Collapsed>> = ranges
-        .iter()
-        .map(|(range, _)| {
-            let indices = &sorted[range.clone()];
-            Some(build_chunk(
-                indices,
-                box_of,
-                (params, max_leaf_size, cubic_cells),
-            ))
-        })
-        .collect();
     let top = build_bvh2_of(
         items.len(),
         &|i| items[i],
@@ -110,21 +103,23 @@ pub(super) fn build_in_chunks(
     );
     let tree = TopTree {
         top: &top,
-        chunks: chunks.len(),
+        chunks: &ranges,
+        sorted: &sorted,
         large: &sorted[..large],
+        box_of,
+        params,
         max_leaf_size,
-        node_cost: params.collapse_traversal_cost,
+        cubic_cells,
     };
-    nodes.reserve(
-        chunks
-            .iter()
-            .flatten()
-            .map(|c| c.nodes.len())
-            .sum::<usize>()
-            + 1,
-    );
-    tree.collapse(&[0], &mut chunks, nodes, order, MAX_DEPTH)
+    // Mapped (see `scratch_vec`), so that growing it past the estimate moves no nodes and
+    // leaves no freed copy resident.
+    *nodes = scratch_vec(count / NODE_ESTIMATE_DIVISOR + 1, true);
+    tree.collapse(&[0], nodes, order, MAX_DEPTH)
 }
+
+/// The 4-wide nodes reserved for a chunked build: one per this many primitives (the 2M grid
+/// has one per 6.3).
+const NODE_ESTIMATE_DIVISOR: usize = 5;
 
 /// Reorders `boxed`: first the large primitives (their number is returned; more than
 /// [`MAX_LARGE`] are left with the others), then the chunks, whose ranges and boxes are
@@ -315,13 +310,20 @@ fn bin(boxed: &[Boxed]) -> Bins {
     bins
 }
 
-/// One chunk's tree, built and collapsed; its slots name the primitives by their index in
-/// the scene.
-fn build_chunk(
+/// Builds the tree of one chunk (the primitives `indices`) and appends it to `nodes` and
+/// `order` (its root first, its slots naming the primitives by their index in the scene),
+/// as a whole build's collapse appends a subtree; returns its depth. Each chunk is built
+/// where the top tree's collapse reaches it, so that no chunk's nodes wait beside the
+/// others' to be copied in, and its binary tree (mapped scratch) is unmapped before the next.
+/// The 2M-triangle grid builds faster this way than with the parallel collapse and copies
+/// (docs/performance.md, "Memory per triangle").
+fn append_chunk(
     indices: &[u32],
     box_of: &(impl Fn(usize) -> Aabb + Sync),
     (params, max_leaf_size, cubic_cells): (BvhBuildParams, u32, bool),
-) -> Collapsed {
+    nodes: &mut Vec<Node4>,
+    order: &mut Vec<u32>,
+) -> usize {
     let bvh2 = build_bvh2_of(
         indices.len(),
         &|k| box_of(indices[k] as usize),
@@ -336,29 +338,44 @@ fn build_chunk(
         max_leaf_size,
         node_cost: params.collapse_traversal_cost,
     };
-    let mut collapsed = Collapsed::default();
-    collapsed.depth = tree.collapse_in_parallel(&mut collapsed.nodes, &mut collapsed.order);
-    collapsed
-        .order
+    let first_slot = order.len();
+    // Sequentially, straight into `nodes` and `order`: the parallel collapse's vectors per
+    // subtree, freed once copied in, stayed resident in the allocator's arenas (with the
+    // other blocks below, 31 MiB beside the 2M grid's render scene, 16 bytes per triangle).
+    let depth = tree.collapse(
+        &[0],
+        nodes,
+        order,
+        MAX_DEPTH,
+        usize::MAX,
+        &mut std::iter::empty(),
+    );
+    order[first_slot..]
         .par_iter_mut()
         .for_each(|i| *i = indices[*i as usize]);
-    collapsed
+    depth
 }
 
 /// The top tree: a binary tree over the chunks and the large primitives (its leaves: items
 /// `0..chunks` are the chunks, the rest the large primitives, in `large`'s order).
-struct TopTree<'a> {
+struct TopTree<'a, F> {
     top: &'a Bvh2,
-    chunks: usize,
+    /// Per chunk, its range of `sorted`.
+    chunks: &'a [(Range<usize>, Aabb)],
+    /// The primitives' indices, the large ones first, then the chunks'.
+    sorted: &'a [u32],
     large: &'a [u32],
+    /// The primitives' boxes, for the chunks' builds.
+    box_of: &'a F,
+    params: BvhBuildParams,
     max_leaf_size: u32,
-    node_cost: f32,
+    cubic_cells: bool,
 }
 
 /// A lane's content in [`TopTree::lanes`]: a chunk's root.
 const CHUNK_LANE: u32 = u32::MAX;
 
-impl TopTree<'_> {
+impl<F: Fn(usize) -> Aabb + Sync> TopTree<'_, F> {
     /// The item of top node `n` if it is a leaf.
     fn item(&self, n: u32) -> Option<usize> {
         let node = &self.top.nodes[n as usize];
@@ -371,14 +388,18 @@ impl TopTree<'_> {
     /// tests more cheaply than nodes would (as [`BinaryTree`] decides), else 0 (inner).
     fn lane_kind(&self, n: u32) -> u32 {
         match self.item(n) {
-            Some(item) if item < self.chunks => CHUNK_LANE,
+            Some(item) if item < self.chunks.len() => CHUNK_LANE,
             // Only large primitives merge: a chunk below makes the subtree unmergeable.
             _ => merged_leaf(
                 &self.top.nodes,
                 n,
                 self.max_leaf_size,
-                self.node_cost,
-                &|n| self.item(n).filter(|&item| item >= self.chunks).map(|_| 1),
+                self.params.collapse_traversal_cost,
+                &|n| {
+                    (self.item(n))
+                        .filter(|&item| item >= self.chunks.len())
+                        .map(|_| 1)
+                },
             )
             .map_or(0, |(size, _)| size),
         }
@@ -388,7 +409,7 @@ impl TopTree<'_> {
     fn append_large(&self, n: u32, order: &mut Vec<u32>) {
         let node = &self.top.nodes[n as usize];
         match self.item(n) {
-            Some(item) => order.push(self.large[item - self.chunks]),
+            Some(item) => order.push(self.large[item - self.chunks.len()]),
             None => {
                 self.append_large(node.first_index, order);
                 self.append_large(node.first_index + 1, order);
@@ -398,13 +419,12 @@ impl TopTree<'_> {
 
     /// Appends the 4-wide node over the top tree's nodes `children` (inner ones opened,
     /// widest first, until there are four lanes), then what is below each lane: a top inner
-    /// node recursively, a chunk spliced in whole (its root node is the lane's child) or a
-    /// leaf of large primitives. Returns the depth below and including the node, or stops
+    /// node recursively, a chunk built and appended whole (its root node is the lane's child)
+    /// or a leaf of large primitives. Returns the depth below and including the node, or stops
     /// with a depth above [`MAX_DEPTH`] when `levels_left` runs out.
     fn collapse(
         &self,
         children: &[u32],
-        chunks: &mut [Option<Collapsed>],
         nodes: &mut Vec<Node4>,
         order: &mut Vec<u32>,
         levels_left: usize,
@@ -424,13 +444,14 @@ impl TopTree<'_> {
                 CHUNK_LANE => {
                     nodes[index].child[k] = nodes.len() as u32;
                     let chunk = self.item(n).expect("a chunk is a leaf of the top tree");
-                    let collapsed = chunks[chunk].take().expect("each chunk is below one lane");
-                    collapsed.splice_into(nodes, order)
+                    let indices = &self.sorted[self.chunks[chunk].0.clone()];
+                    let build = (self.params, self.max_leaf_size, self.cubic_cells);
+                    append_chunk(indices, self.box_of, build, nodes, order)
                 }
                 0 => {
                     nodes[index].child[k] = nodes.len() as u32;
                     let first = node.first_index;
-                    self.collapse(&[first, first + 1], chunks, nodes, order, levels_left - 1)
+                    self.collapse(&[first, first + 1], nodes, order, levels_left - 1)
                 }
                 size => {
                     nodes[index].child[k] = order.len() as u32;

@@ -1,15 +1,20 @@
-//! Primitives laid out for the single-ray traversals' leaf tests: one 64-byte, cache-line
-//! aligned record per BVH slot, holding what the test reads and nothing else (a triangle's
-//! normal precomputed; no enum to match). In trees whose leaves hold one primitive each
-//! (small scenes), each node also keeps its leaves' triangles transposed, so that the
-//! closest-hit traversal tests them together; in the smallest scenes the closest-hit query
-//! skips the tree and tests every triangle, four at a time.
+//! Primitives laid out for the single-ray traversals' leaf tests: one 40-byte record per BVH
+//! slot, holding what the test reads and nothing else (a triangle's first vertex and two
+//! edges, packed; no enum to match). In trees whose leaves hold one primitive each (small scenes),
+//! each node also keeps its leaves' triangles transposed, so that the closest-hit traversal
+//! tests them together; in the smallest scenes the closest-hit query skips the tree and
+//! tests every triangle, four at a time.
 //!
 //! The triangle test does the same arithmetic as [`crate::geometry::triangle::intersect_triangle`],
-//! so it returns the same distances bit for bit. It keeps one early exit, on the distance
-//! (cheap for coherent rays, whose candidates mostly lie beyond a closer hit: 12% fewer
-//! instructions on the room's primary rays), and forms the other conditions in vector
-//! compares before one branch: incoherent rays mispredict early exits about as often as not.
+//! so it returns the same distances bit for bit. The geometric normal `e1 x e2` is computed
+//! in the test rather than stored, and the edges are packed without padding: the record was
+//! 64 bytes (four aligned vectors), the largest part of a large scene's memory (see
+//! docs/performance.md, "Memory per triangle"). The record is read in three unaligned
+//! four-float loads, as the aligned one was (see [`TriangleLanes::new`]). The test keeps one
+//! early exit, on the distance (cheap for coherent rays, whose candidates mostly lie beyond
+//! a closer hit: 12% fewer instructions on the room's primary rays), and forms the other
+//! conditions in vector compares before one branch: incoherent rays mispredict early exits
+//! about as often as not.
 
 use super::build::{Bvh4, Node4};
 use crate::geometry::Shape;
@@ -22,70 +27,91 @@ const SPHERE_TAG: f32 = 1.0;
 
 /// One primitive for the leaf test.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(64))]
+#[repr(C)]
 pub struct LeafPrim {
-    /// Triangle: `v0`, `w` = 0. Sphere: centre, `w` = [`SPHERE_TAG`].
-    a: Vec4,
-    /// Triangle: `e1 = v1 - v0`. Sphere: radius in `x`.
-    b: Vec4,
-    /// Triangle: `e2 = v2 - v0`.
-    c: Vec4,
-    /// Triangle: the geometric normal `e1 x e2`.
-    d: Vec4,
+    /// Triangle: `v0`, then 0. Sphere: centre, then [`SPHERE_TAG`].
+    a: [f32; 4],
+    /// Triangle: `e1 = v1 - v0`, then `e2 = v2 - v0`. Sphere: radius first, then zeros.
+    edges: [f32; 6],
 }
 
 impl LeafPrim {
     /// The record of no primitive: its determinant is zero, so no ray hits it.
     const NONE: LeafPrim = LeafPrim {
-        a: Vec4::ZERO,
-        b: Vec4::ZERO,
-        c: Vec4::ZERO,
-        d: Vec4::ZERO,
+        a: [0.0; 4],
+        edges: [0.0; 6],
     };
 
     /// The record of `shape`.
     pub fn new(shape: &Shape) -> Self {
         match shape {
             Shape::Triangle(t) => LeafPrim {
-                a: t.v0.extend(0.0),
-                b: t.e1.extend(0.0),
-                c: t.e2.extend(0.0),
-                d: t.e1.cross(t.e2).extend(0.0),
+                a: t.v0.extend(0.0).to_array(),
+                edges: [t.e1.x, t.e1.y, t.e1.z, t.e2.x, t.e2.y, t.e2.z],
             },
             Shape::Sphere(s) => LeafPrim {
-                a: s.center.extend(SPHERE_TAG),
-                b: Vec4::new(s.radius, 0.0, 0.0, 0.0),
-                c: Vec4::ZERO,
-                d: Vec4::ZERO,
+                a: s.center.extend(SPHERE_TAG).to_array(),
+                edges: [s.radius, 0.0, 0.0, 0.0, 0.0, 0.0],
             },
         }
+    }
+
+    /// Whether the record holds a sphere.
+    #[inline(always)]
+    fn is_sphere(&self) -> bool {
+        self.a[3] == SPHERE_TAG
+    }
+
+    /// `v0` (a sphere's centre) and the tag.
+    #[inline(always)]
+    fn first(&self) -> Vec4 {
+        Vec4::from_array(self.a)
+    }
+
+    /// `e1` and `e2.x`.
+    #[inline(always)]
+    fn edges_head(&self) -> Vec4 {
+        let e = &self.edges;
+        Vec4::new(e[0], e[1], e[2], e[3])
+    }
+
+    /// `e1.z` and `e2`.
+    #[inline(always)]
+    fn edges_tail(&self) -> Vec4 {
+        let e = &self.edges;
+        Vec4::new(e[2], e[3], e[4], e[5])
+    }
+
+    /// A triangle record's `v0`, `e1` and `e2`.
+    #[inline(always)]
+    fn triangle(&self) -> (Vec3A, Vec3A, Vec3A) {
+        let e2 = self.edges_tail();
+        (
+            Vec3A::from_vec4(self.first()),
+            Vec3A::from_vec4(self.edges_head()),
+            Vec3A::new(e2.y, e2.z, e2.w),
+        )
     }
 
     /// The primitive this record holds.
     #[inline(always)]
     pub fn shape(&self) -> Shape {
-        if self.a.w == SPHERE_TAG {
+        if self.is_sphere() {
             return Shape::Sphere(self.sphere());
         }
-        Shape::Triangle(TriangleGeom {
-            v0: Vec3A::from_vec4(self.a),
-            e1: Vec3A::from_vec4(self.b),
-            e2: Vec3A::from_vec4(self.c),
-        })
+        let (v0, e1, e2) = self.triangle();
+        Shape::Triangle(TriangleGeom { v0, e1, e2 })
     }
 
     /// Hit distance in `(0, t_max]`, or infinity.
     #[inline(always)]
     pub fn hit_t(&self, origin: Vec3A, direction: Vec3A, t_max: f32) -> f32 {
-        if self.a.w == SPHERE_TAG {
+        if self.is_sphere() {
             return self.sphere_t(origin, direction, t_max);
         }
-        let (v0, e1, e2, ng) = (
-            Vec3A::from_vec4(self.a),
-            Vec3A::from_vec4(self.b),
-            Vec3A::from_vec4(self.c),
-            Vec3A::from_vec4(self.d),
-        );
+        let (v0, e1, e2) = self.triangle();
+        // As `TriangleGeom::normal_unnormalized`, so the same bits.
+        let ng = e1.cross(e2);
         let c = v0 - origin;
         let det = ng.dot(direction);
         let inv_det = 1.0 / det;
@@ -114,8 +140,8 @@ impl LeafPrim {
     #[inline(always)]
     fn sphere(&self) -> SphereGeom {
         SphereGeom {
-            center: Vec3A::from_vec4(self.a),
-            radius: self.b.x,
+            center: Vec3A::from_vec4(self.first()),
+            radius: self.edges[0],
         }
     }
 }
@@ -188,15 +214,16 @@ fn closest_of_four(
     direction: Vec3A,
     t_max: f32,
 ) -> Option<(u32, f32)> {
-    if quad.iter().any(|p| p.a.w == SPHERE_TAG) {
+    if quad.iter().any(|p| p.is_sphere()) {
         return None;
     }
     let lanes = TriangleLanes::new(quad);
     Some(lanes.closest(BVec4A::splat(true), origin, direction, t_max))
 }
 
-/// Four triangles as structure-of-arrays lanes: each vector by axis, lane `k` = triangle `k`.
-/// All-zero lanes (no triangle) have a zero determinant, which no ray hits.
+/// Four triangles as structure-of-arrays lanes: each vector by axis, lane `k` = triangle `k`,
+/// with their geometric normals. All-zero lanes (no triangle) have a zero determinant, which
+/// no ray hits.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct TriangleLanes {
@@ -210,16 +237,24 @@ impl TriangleLanes {
     /// The triangle records `quad` in lanes 0 to 3.
     #[inline(always)]
     fn new(quad: [&LeafPrim; 4]) -> Self {
-        // Each field's 4 x 4 block transposed: x, y, z of that vector over the four lanes.
-        let rows = |field: fn(&LeafPrim) -> Vec4| {
-            let [x, y, z, _] = transpose4(quad.map(field));
-            [x, y, z]
-        };
+        // Each four-float load's 4 x 4 block transposed: one of its floats over the four
+        // lanes per row (`e2` is the tail load's last three rows).
+        let [v0x, v0y, v0z, _] = transpose4(quad.map(LeafPrim::first));
+        let [e1x, e1y, e1z, _] = transpose4(quad.map(LeafPrim::edges_head));
+        let [_, e2x, e2y, e2z] = transpose4(quad.map(LeafPrim::edges_tail));
+        let (e1, e2) = ([e1x, e1y, e1z], [e2x, e2y, e2z]);
+        // `e1 x e2` lane by lane, as glam's `cross` forms each component
+        // (`a.y b.z - b.y a.z`), so the same bits as `LeafPrim::hit_t`'s.
+        let ng = [
+            e1[1] * e2[2] - e2[1] * e1[2],
+            e1[2] * e2[0] - e2[2] * e1[0],
+            e1[0] * e2[1] - e2[0] * e1[1],
+        ];
         TriangleLanes {
-            v0: rows(|p| p.a),
-            e1: rows(|p| p.b),
-            e2: rows(|p| p.c),
-            ng: rows(|p| p.d),
+            v0: [v0x, v0y, v0z],
+            e1,
+            e2,
+            ng,
         }
     }
 
@@ -287,7 +322,7 @@ pub fn node_triangles(prims: &[LeafPrim], bvh: &Bvh4) -> Vec<NodeTriangles> {
     let node_triangles = |node: &Node4| {
         let triangle = |k: usize| {
             let prim = (node.count[k] == 1).then(|| &prims[node.child[k] as usize]);
-            prim.filter(|p| p.a.w != SPHERE_TAG)
+            prim.filter(|p| !p.is_sphere())
         };
         let quad = [0, 1, 2, 3].map(triangle);
         NodeTriangles {
@@ -364,7 +399,7 @@ impl FlatPrimitives {
             return None;
         }
         let (spheres, triangles): (Vec<u32>, Vec<u32>) =
-            (0..prims.len() as u32).partition(|&slot| prims[slot as usize].a.w == SPHERE_TAG);
+            (0..prims.len() as u32).partition(|&slot| prims[slot as usize].is_sphere());
         let group = |slots: &[u32]| {
             let slot = |k: usize| slots.get(k).map_or(f32::INFINITY, |&s| s as f32);
             let prim = |k: usize| {
@@ -527,8 +562,7 @@ mod tests {
     }
 
     #[test]
-    fn records_are_one_cache_line() {
-        assert_eq!(std::mem::size_of::<LeafPrim>(), 64);
-        assert_eq!(std::mem::align_of::<LeafPrim>(), 64);
+    fn records_are_ten_floats() {
+        assert_eq!(std::mem::size_of::<LeafPrim>(), 40);
     }
 }

@@ -36,12 +36,12 @@ use std::time::Instant;
 
 /// Peak resident bytes per primitive that flattening adds to the world it reads: the BVH
 /// build, then the leaf records and the per-slot columns (a 2-million-triangle OBJ adds
-/// about 110 bytes per triangle, 160 with normals and texture coordinates; see
+/// about 73 bytes per triangle, 121 with normals and texture coordinates; see
 /// docs/performance.md, "Memory per triangle"). Kept with a margin.
 const FLATTEN_RESIDENT_PER_PRIMITIVE: u64 = 200;
 /// The same in address space, which grows faster (allocator arenas, vectors reserved before
 /// they are filled, the chunked build's mapped scratch): the 2-million-triangle OBJ's
-/// address space peaks at 0.57 GB (`VmPeak`), about 150 bytes per triangle over its world.
+/// address space peaks at 0.51 GB (`VmPeak`).
 const FLATTEN_ADDRESS_SPACE_PER_PRIMITIVE: u64 = 250;
 
 /// Refuses a world whose render scene would not fit in the memory the process can still
@@ -406,8 +406,8 @@ fn build_tree_of(
     })
 }
 
-/// Per slot (BVH order `order`), the material index, the light index (or [`NO_EMITTER`])
-/// and, if `alpha_tested`, the alpha record (or [`crate::accel::alpha::OPAQUE`]) of its primitive.
+/// Per slot (BVH order `order`), the material index, the light index (or [`NO_EMITTER`];
+/// none at all when no primitive emits) and, if `alpha_tested`, the alpha record (or [`crate::accel::alpha::OPAQUE`]) of its primitive.
 fn slot_materials_lights_and_alpha(
     groups: &[Group],
     first_light: &[u32],
@@ -415,17 +415,26 @@ fn slot_materials_lights_and_alpha(
     alpha_tested: bool,
 ) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
     let group_of = |prim: u32| groups.partition_point(|g| g.first <= prim as usize) - 1;
-    let (material, emitter) = order
+    let material = order
         .par_iter()
-        .map(|&prim| {
-            let g = group_of(prim);
-            let light = match first_light[g] {
-                NO_EMITTER => NO_EMITTER,
-                first => first + prim - groups[g].first as u32,
-            };
-            (groups[g].material, light)
-        })
-        .unzip();
+        .map(|&prim| groups[group_of(prim)].material)
+        .collect();
+    // Empty when nothing emits (`RenderScene::emitter_of` reads a missing entry as
+    // `NO_EMITTER`): 4 bytes per primitive that most large scenes do not need.
+    let emitter = if first_light.iter().all(|&first| first == NO_EMITTER) {
+        Vec::new()
+    } else {
+        order
+            .par_iter()
+            .map(|&prim| {
+                let g = group_of(prim);
+                match first_light[g] {
+                    NO_EMITTER => NO_EMITTER,
+                    first => first + prim - groups[g].first as u32,
+                }
+            })
+            .collect()
+    };
     let alpha = if alpha_tested {
         order
             .par_iter()
