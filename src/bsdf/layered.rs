@@ -218,7 +218,7 @@ impl Layered {
         if wo.z == 0.0 || wi.z == 0.0 {
             return 0.0;
         }
-        let (wo_up, wi_up) = Self::to_upper(wo, wi);
+        let (_, wi_up) = Self::to_upper(wo, wi);
         let at = self.at_wo(wo);
         let p_base = (1.0 - at.p_coat - at.p_sheen).max(0.0);
         let mut pdf = if p_base > 0.0 {
@@ -253,7 +253,6 @@ impl Layered {
         if wo.z == 0.0 {
             return None;
         }
-        let (wo_up, _) = Self::to_upper(wo, Vec3A::Z);
         let at = self.at_wo(wo);
         let flip = |w: Vec3A| {
             if wo.z > 0.0 {

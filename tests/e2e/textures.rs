@@ -509,15 +509,6 @@ color = [1, 1, 1]
     path
 }
 
-/// The white furnace of a normal-mapped plane: a white Lambertian (albedo 1) quad under a
-/// uniform sky of radiance 1 reflects exactly 1 where its normal is not mapped and, where the
-/// map tilts the shading normal by theta, the cosine about the mapped normal times Blender's
-/// Bump Map Correction `G1(alpha^2, cos theta_i)` (alpha^2 = tan^2(theta) / 8) over the sky
-/// above the geometric surface (wavetrace never lets a shading normal gather light from below
-/// the geometric surface, nor send paths there): [`bump_corrected_lambertian_furnace`]. Never
-/// more than 1: normal maps do not make energy. A white rough metal (multiscatter GGX) is 1
-/// without the map and below 1 with it.
-
 /// The reflectance of a white Lambertian whose shading normal is tilted by `acos(tilt_cos)`
 /// from the geometric (and smooth) normal `+z`, under a uniform sky above `+z`, with the Bump
 /// Map Correction: (1 / pi) times the integral of max(0, n . wi) G1(wi) over the upper
@@ -540,6 +531,14 @@ fn bump_corrected_lambertian_furnace(tilt_cos: f64) -> f64 {
     total * (std::f64::consts::TAU / nphi as f64) / nmu as f64 / std::f64::consts::PI
 }
 
+/// The white furnace of a normal-mapped plane: a white Lambertian (albedo 1) quad under a
+/// uniform sky of radiance 1 reflects exactly 1 where its normal is not mapped and, where the
+/// map tilts the shading normal by theta, the cosine about the mapped normal times Blender's
+/// Bump Map Correction `G1(alpha^2, cos theta_i)` (alpha^2 = tan^2(theta) / 8) over the sky
+/// above the geometric surface (wavetrace never lets a shading normal gather light from below
+/// the geometric surface, nor send paths there): [`bump_corrected_lambertian_furnace`]. Never
+/// more than 1: normal maps do not make energy. A white rough metal (multiscatter GGX) is 1
+/// without the map and below 1 with it.
 #[test]
 fn normal_maps_gain_no_energy_in_a_white_furnace() {
     let dir = tempfile::tempdir().unwrap();
