@@ -5,7 +5,10 @@ Cases (`--only NAME`):
 - `orm`: a cube whose one Non-Color image is its occlusion (R, through the "glTF Material
   Output" group), roughness (G) and metallic (B) map, in 2 x 2 patches per face;
 - `normal`: a plane under a sun with a tangent-space normal map of bumps (strength 1 and 2;
-  0: the map is not connected, the baseline).
+  0: the map is not connected, the baseline);
+- `p_`: a smooth sphere of one Principled material on a grey floor: rough metal, plastic,
+  rough transmission, specular tint (with and without transmission), and a clear coat over a
+  normal-mapped base with its own coat normal map.
 
 Each case prints the whole-image mean of wavetrace and Cycles, their ratio, and the median
 over 8 x 8-pixel blocks of |wavetrace - Cycles| / Cycles. Results go to OUT/results.txt.
@@ -141,6 +144,55 @@ def build_normal(out, size, strength):
     return scene
 
 
+def build_principled(out, size, settings, normal_strength=0.0, coat_normal=False):
+    """A smooth UV sphere of one Principled material (`settings`: input name -> value) on a
+    grey floor, under a sun (no sky: glTF carries none); optionally the `normal` case's map on the base
+    (at `normal_strength`) and, at strength 1, on the coat."""
+    scene = empty_scene(radiance=0.0)
+    scene.render.resolution_x = scene.render.resolution_y = size
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, segments=48, ring_count=24)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    sphere.location = (0.0, 0.0, 1.0)
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    floor = bpy.context.active_object
+    grey = bpy.data.materials.new("floor")
+    grey.use_nodes = True
+    grey.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.4, 0.4, 0.4, 1)
+    grey.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 1.0
+    floor.data.materials.append(grey)
+    mat = bpy.data.materials.new("principled")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    for name, value in settings.items():
+        bsdf.inputs[name].default_value = value
+    if normal_strength > 0.0:
+
+        def bumps(x, y):
+            s, c = math.sin(math.radians(30)), math.cos(math.radians(30))
+            k = (x // 4) + 2 * (y // 4)
+            n = [(s, 0, c), (-s, 0, c), (0, s, c), (0, -s, c)][k]
+            return tuple(0.5 * v + 0.5 for v in n)
+
+        img = image("pbumps", 8, bumps, os.path.join(out, "pbumps.png"))
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        tex.interpolation = "Closest"
+        nmap = nodes.new("ShaderNodeNormalMap")
+        nmap.inputs["Strength"].default_value = normal_strength
+        links.new(tex.outputs["Color"], nmap.inputs["Color"])
+        links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+        if coat_normal:
+            cmap = nodes.new("ShaderNodeNormalMap")
+            links.new(tex.outputs["Color"], cmap.inputs["Color"])
+            links.new(cmap.outputs["Normal"], bsdf.inputs["Coat Normal"])
+    sphere.data.materials.append(mat)
+    sun(scene, 3.0, (math.radians(40.0), 0.0, math.radians(30.0)))
+    camera(scene, (0.0, -6.0, 3.0), (0.0, 0.0, 0.8))
+    return scene
+
+
 def render_cycles(scene, path, samples):
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
@@ -213,6 +265,34 @@ def main():
         "normal0": lambda: build_normal(out, args.size, 0.0),
         "normal1": lambda: build_normal(out, args.size, 1.0),
         "normal2": lambda: build_normal(out, args.size, 2.0),
+        # Principled spheres (issue 34's remaining gaps).
+        "p_metal": lambda: build_principled(
+            out, args.size, {"Base Color": (0.9, 0.6, 0.3, 1), "Metallic": 1.0, "Roughness": 0.7}
+        ),
+        "p_plastic": lambda: build_principled(
+            out, args.size, {"Base Color": (0.8, 0.8, 0.8, 1), "Roughness": 0.3}
+        ),
+        "p_rough_glass": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.8, 0.8, 0.8, 1), "Transmission Weight": 0.2, "IOR": 1.45,
+             "Roughness": 0.4},
+        ),
+        "p_specular": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.3, 0.5, 0.2, 1), "Roughness": 0.3, "Specular IOR Level": 1.0,
+             "Specular Tint": (1.0, 0.6, 0.3, 1)},
+        ),
+        "p_specular_glass": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.3, 0.5, 0.2, 1), "Roughness": 0.3, "Specular IOR Level": 1.0,
+             "Specular Tint": (1.0, 0.6, 0.3, 1), "Transmission Weight": 0.3},
+        ),
+        "p_coat": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.02, 0.05, 0.3, 1), "Roughness": 0.5, "Coat Weight": 0.225,
+             "Coat Roughness": 0.1},
+            normal_strength=2.0, coat_normal=True,
+        ),
     }
     lines = []
     for name, build in cases.items():

@@ -17,6 +17,13 @@
 //! `(1 - clearcoat Fc)` and sheen factor. The layers are on the side of `wo`, as two-sided
 //! surfaces are (from inside glass, the coat reflects back inside).
 //!
+//! The coat has its own normal: where a normal map tilts the base's shading normal, the coat
+//! keeps the smooth (interpolated) normal, as the specification says of a coat without
+//! `clearcoatNormalTexture` (which wavetrace does not read; Blender's Coat Normal is likewise
+//! separate from the base's Normal). Its lobe and its Fresnel `Fc` are evaluated in the frame
+//! of that normal ([`super::BumpShadowing::smooth_normal`], the same vector the base's Bump
+//! Map Correction uses).
+//!
 //! Sampling picks the coat (GGX visible normals), the sheen (uniform hemisphere: the lobe
 //! peaks at grazing angles, where a cosine would sample it least) or the base (its own
 //! sampling) by their approximate albedos at `wo`; `pdf` is the mixture's density and a
@@ -27,7 +34,8 @@ use super::microfacet::{
     distribution, masking_shadowing, reflect_about, sample_visible_normal, visible_normal_pdf,
 };
 use super::{BsdfSample, sheen};
-use crate::math::{Rgb, Vec2, Vec3A, luminance, max_component};
+use crate::math::frame::Frame;
+use crate::math::{Rgb, Vec2, Vec3, Vec3A, luminance, max_component};
 use std::f32::consts::{FRAC_1_PI, TAU};
 
 /// Normal-incidence reflectance of the coat (ior 1.5).
@@ -107,9 +115,27 @@ impl Layered {
         }
     }
 
+    /// The coat's frame: the smooth normal where a normal map tilts the base's shading
+    /// normal (the specification's coat without `clearcoatNormalTexture` is not normal-mapped),
+    /// `None` where it is the shading frame itself.
+    #[inline]
+    fn coat_frame(&self) -> Option<Frame> {
+        let n = self.base.bump.smooth_normal;
+        (n != Vec3::Z).then(|| Frame::from_normal(Vec3A::from(n)))
+    }
+
+    /// `w` (shading frame) in the coat's frame.
+    #[inline]
+    fn in_coat_frame(frame: &Option<Frame>, w: Vec3A) -> Vec3A {
+        match frame {
+            Some(frame) => frame.to_local(w),
+            None => w,
+        }
+    }
+
     #[inline]
     fn at_wo(&self, wo: Vec3A) -> AtWo {
-        let mu = wo.z.abs();
+        let mu = Self::in_coat_frame(&self.coat_frame(), wo).z.abs();
         let coat = self.clearcoat * coat_fresnel(mu);
         let sheen_albedo = self.sheen_albedo(mu);
         let sheen_max = max_component(self.sheen_color);
@@ -166,13 +192,18 @@ impl Layered {
         } else {
             base
         };
-        // --- The coat over both.
+        // --- The coat over both, in its own frame.
         if self.clearcoat > 0.0 {
-            let coat = if wi_up.z > 0.0 {
-                let h = (wo_up + wi_up).normalize();
+            let frame = self.coat_frame();
+            let (wo_c, wi_c) = Self::to_upper(
+                Self::in_coat_frame(&frame, wo),
+                Self::in_coat_frame(&frame, wi),
+            );
+            let coat = if wi_c.z > 0.0 && wo_c.z > 0.0 {
+                let h = (wo_c + wi_c).normalize();
                 distribution(self.clearcoat_alpha, h)
-                    * masking_shadowing(self.clearcoat_alpha, wo_up, wi_up)
-                    / (4.0 * wo_up.z * wi_up.z)
+                    * masking_shadowing(self.clearcoat_alpha, wo_c, wi_c)
+                    / (4.0 * wo_c.z * wi_c.z)
             } else {
                 0.0
             };
@@ -187,7 +218,7 @@ impl Layered {
         if wo.z == 0.0 || wi.z == 0.0 {
             return 0.0;
         }
-        let (wo_up, wi_up) = Self::to_upper(wo, wi);
+        let (_, wi_up) = Self::to_upper(wo, wi);
         let at = self.at_wo(wo);
         let p_base = (1.0 - at.p_coat - at.p_sheen).max(0.0);
         let mut pdf = if p_base > 0.0 {
@@ -195,15 +226,22 @@ impl Layered {
         } else {
             0.0
         };
-        if wi_up.z > 0.0 {
-            if at.p_coat > 0.0 {
-                let h = (wo_up + wi_up).normalize();
-                let c = wo_up.dot(h);
+        if at.p_coat > 0.0 {
+            let frame = self.coat_frame();
+            let (wo_c, wi_c) = Self::to_upper(
+                Self::in_coat_frame(&frame, wo),
+                Self::in_coat_frame(&frame, wi),
+            );
+            if wi_c.z > 0.0 && wo_c.z > 0.0 {
+                let h = (wo_c + wi_c).normalize();
+                let c = wo_c.dot(h);
                 if c > 0.0 {
                     pdf +=
-                        at.p_coat * visible_normal_pdf(self.clearcoat_alpha, wo_up, h) / (4.0 * c);
+                        at.p_coat * visible_normal_pdf(self.clearcoat_alpha, wo_c, h) / (4.0 * c);
                 }
             }
+        }
+        if wi_up.z > 0.0 {
             pdf += at.p_sheen * UNIFORM_HEMISPHERE_PDF;
         }
         pdf
@@ -215,7 +253,6 @@ impl Layered {
         if wo.z == 0.0 {
             return None;
         }
-        let (wo_up, _) = Self::to_upper(wo, Vec3A::Z);
         let at = self.at_wo(wo);
         let flip = |w: Vec3A| {
             if wo.z > 0.0 {
@@ -225,12 +262,23 @@ impl Layered {
             }
         };
         let wi = if u_lobe < at.p_coat {
-            let h = sample_visible_normal(self.clearcoat_alpha, wo_up, u);
-            let wi = reflect_about(wo_up, h);
-            if wo_up.dot(h) <= 0.0 || wi.z <= 0.0 {
+            let frame = self.coat_frame();
+            let wo_c = Self::in_coat_frame(&frame, wo);
+            let side = if wo_c.z > 0.0 { 1.0 } else { -1.0 };
+            let wo_c = wo_c * Vec3A::new(1.0, 1.0, side);
+            if wo_c.z <= 0.0 {
                 return None;
             }
-            flip(wi)
+            let h = sample_visible_normal(self.clearcoat_alpha, wo_c, u);
+            let wi_c = reflect_about(wo_c, h);
+            if wo_c.dot(h) <= 0.0 || wi_c.z <= 0.0 {
+                return None;
+            }
+            let wi_c = wi_c * Vec3A::new(1.0, 1.0, side);
+            match frame {
+                Some(frame) => frame.to_world(wi_c),
+                None => wi_c,
+            }
         } else if u_lobe < at.p_coat + at.p_sheen {
             flip(sample_uniform_hemisphere(u))
         } else {

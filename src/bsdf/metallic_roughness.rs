@@ -3,19 +3,36 @@
 //!
 //! ```text
 //! metal      = specular_brdf(alpha) * schlick(f0 = base_color, |wo.h|)
-//! opaque     = (1 - specular * max3(fr)) * base_color / pi + specular * fr * specular_brdf(alpha)
+//! opaque     = (1 - specular * max3(E_spec(wo))) * base_color / pi + specular * fr * specular_brdf(alpha)
 //!              with fr = schlick(f0 = min(((ior-1)/(ior+1))^2 * specular_color, 1), |wo.h|)
+//!              and E_spec(wo) the specular lobe's directional albedo (per channel)
 //! glass      = rough dielectric (Walter et al. 2007): F * specular_brdf + (1 - F) * base_color * specular_btdf
 //!              with F the exact dielectric Fresnel of the microfacet
 //! f          = metallic * metal + (1 - metallic) * ((1 - transmission) * opaque + transmission * glass)
 //! specular_brdf = D G2 / (4 |wo.z| |wi.z|),  GGX D with alpha = roughness^2, height-correlated Smith G2
 //! ```
 //!
+//! The metal and the opaque dielectric's specular lobe are single-scattering GGX times the
+//! energy compensation of [`ggx_albedo`] (Blender's default "Multiscatter GGX": the energy
+//! that single scattering loses to masking comes back, so a white metal reflects all light at
+//! every roughness). Always on, for every file (the glTF specification's BRDF is single
+//! scattering; Cycles renders Blender's and imported files with multiscatter GGX). The
+//! rough glass part stays single scattering.
+//!
+//! The opaque dielectric is layered as Blender's Principled BSDF is, not as the glTF
+//! specification's `fresnel_mix` (which takes `1 - F` per microfacet and reflects up to 1.43
+//! of the light at grazing angles over a white base): the diffuse base is scaled by one minus
+//! the specular layer's directional albedo at `wo` ([`ggx_albedo::compensated_schlick_albedo`]),
+//! so the pair conserves energy; like the compensation it depends on `wo` alone.
+//!
 //! The spec writes the transmissive dielectric as `fresnel_mix(base = specular_btdf, layer =
 //! specular_brdf)`; here that pair is the physically based rough dielectric, so that
 //! transmission conserves energy and reduces to the seed's smooth glass as roughness goes to 0
 //! (smooth glass itself stays [`super::Bsdf::Dielectric`]). Transmission refracts (a volume
 //! boundary, `+z` = outside), and `KHR_materials_specular` does not apply to it.
+//!
+//! The diffuse lobe carries Blender's Bump Map Correction ([`BumpShadowing`]) where a normal
+//! map tilts the shading normal.
 //!
 //! Surfaces without transmission are two-sided: they reflect on the side `wo` is on.
 //!
@@ -25,7 +42,9 @@
 //! is `eval * |cos| / pdf` (one-sample MIS over lobes).
 
 use super::BsdfSample;
+use super::bump_shadowing::BumpShadowing;
 use super::dielectric::{FresnelModel, fresnel};
+use super::ggx_albedo::{self, compensated_schlick_albedo, energy_compensation};
 use super::lambert;
 use super::microfacet::{
     alpha_from_roughness, distribution, masking_shadowing, reflect_about, refract_about,
@@ -60,6 +79,9 @@ pub struct MetallicRoughness {
     /// `KHR_materials_transmission` `transmissionFactor` in [0, 1]: the rough glass's share
     /// of the dielectric.
     pub transmission: f32,
+    /// Blender's Bump Map Correction on the diffuse lobe (none unless a normal map tilts the
+    /// shading normal at this hit; set by [`super::Bsdf::with_bump_shadowing`]).
+    pub bump: BumpShadowing,
 }
 
 impl Default for MetallicRoughness {
@@ -73,6 +95,7 @@ impl Default for MetallicRoughness {
             specular: 1.0,
             specular_color: Rgb::ONE,
             transmission: 0.0,
+            bump: BumpShadowing::NONE,
         }
     }
 }
@@ -203,11 +226,12 @@ impl MetallicRoughness {
     /// BSDF value f(wo, wi).
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
         if let Some(albedo) = self.as_lambertian() {
-            return lambert::eval(albedo, wo, wi);
+            return lambert::eval(albedo, wo, wi) * self.bump.factor(wi);
         }
         if wo.z == 0.0 || wi.z == 0.0 {
             return Rgb::ZERO;
         }
+        let bump = self.bump.factor(wi); // of the unflipped pair: it compares wi with Ns
         let (wo, wi, eta) = self.to_upper(wo, wi);
         let (opaque, glass, metal) = self.shares();
         if wi.z > 0.0 {
@@ -218,12 +242,25 @@ impl MetallicRoughness {
                 / (4.0 * wo.z * wi.z);
             let mut f = Rgb::ZERO;
             if metal > 0.0 {
-                f += metal * specular_brdf * schlick(self.base_color, c);
+                let compensation = energy_compensation(
+                    ggx_albedo::schlick_average(self.base_color),
+                    wo.z,
+                    self.alpha,
+                );
+                f += metal * specular_brdf * schlick(self.base_color, c) * compensation;
             }
             if opaque > 0.0 {
-                let fr = schlick(self.dielectric_f0(), c);
-                let base = (1.0 - self.specular * max_component(fr)) * FRAC_1_PI * self.base_color;
-                f += opaque * (base + self.specular * specular_brdf * fr);
+                // Blender's layering: the diffuse base gets what the compensated specular
+                // layer does not reflect of the light from wo (its directional albedo).
+                let f0 = self.dielectric_f0();
+                let layer = compensated_schlick_albedo(f0, wo.z, self.alpha);
+                let base = (1.0 - self.specular * max_component(layer)).max(0.0)
+                    * (FRAC_1_PI * bump)
+                    * self.base_color;
+                let compensation =
+                    energy_compensation(ggx_albedo::schlick_average(f0), wo.z, self.alpha);
+                let fr = schlick(f0, c);
+                f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
             if glass > 0.0 {
                 f += Rgb::splat(glass * specular_brdf * dielectric_reflectance(c, eta));
@@ -287,7 +324,12 @@ impl MetallicRoughness {
     /// the direction.
     pub fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
         if let Some(albedo) = self.as_lambertian() {
-            return lambert::sample(albedo, wo, u);
+            let sample = lambert::sample(albedo, wo, u)?;
+            let bump = self.bump.factor(sample.wi);
+            return Some(BsdfSample {
+                weight: sample.weight * bump,
+                ..sample
+            });
         }
         if wo.z == 0.0 {
             return None;

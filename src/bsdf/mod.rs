@@ -10,9 +10,11 @@
 //! - `eta` is the relative index of refraction across an interface, transmitted over
 //!   incident side.
 
+pub mod bump_shadowing;
 #[cfg(test)]
 pub(crate) mod chi_square;
 pub mod dielectric;
+pub mod ggx_albedo;
 pub mod lambert;
 pub mod layered;
 pub mod metallic_roughness;
@@ -20,6 +22,7 @@ pub mod microfacet;
 pub mod mirror;
 pub mod sheen;
 
+pub use bump_shadowing::BumpShadowing;
 pub use dielectric::FresnelModel;
 pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
@@ -219,6 +222,40 @@ impl Bsdf {
             Bsdf::Unlit { color } => Bsdf::Unlit {
                 color: color * colour,
             },
+        }
+    }
+
+    /// The same model with Blender's Bump Map Correction on its diffuse lobe, for a hit whose
+    /// normal map turned the smooth normal `smooth` into the shading normal `mapped` (unit,
+    /// world space): a Lambertian surface becomes the equal metallic-roughness one (metallic
+    /// and specular 0) that carries the term; mirrors, glass and unlit surfaces have no diffuse
+    /// lobe and are unchanged, as is everything when the normals agree.
+    #[inline]
+    pub fn with_bump_shadowing(self, mapped: Vec3A, smooth: Vec3A) -> Bsdf {
+        let bump = BumpShadowing::new(mapped, smooth);
+        if bump == BumpShadowing::NONE {
+            return self;
+        }
+        match self {
+            Bsdf::Lambertian { albedo } => Bsdf::MetallicRoughness(MetallicRoughness {
+                base_color: albedo,
+                metallic: 0.0,
+                specular: 0.0,
+                transmission: 0.0,
+                bump,
+                ..Default::default()
+            }),
+            Bsdf::MetallicRoughness(params) => {
+                Bsdf::MetallicRoughness(MetallicRoughness { bump, ..params })
+            }
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                base: MetallicRoughness {
+                    bump,
+                    ..layered.base
+                },
+                ..layered
+            }),
+            other => other,
         }
     }
 

@@ -3,7 +3,7 @@
 //! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, FresnelModel, Layered, MetallicRoughness};
+use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use crate::scene::{Material, MaterialTextures, TextureSlot, Volume};
 use crate::texture::{SurfaceTextures, Texture, TextureRef};
@@ -38,6 +38,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 specular,
                 specular_color,
                 transmission,
+                bump: BumpShadowing::NONE,
             };
             let layered = Layered {
                 base,

@@ -73,11 +73,10 @@ pub(super) fn textured_surface(
     if textures.specular.is_set() || textures.specular_color.is_set() {
         bsdf = specular_textured(scene, textures, uv, bsdf);
     }
-    let ns = if textures.normal.is_set() {
-        mapped_normal(scene, textures, slot, b, uv, ng, ns, wo)
-    } else {
-        ns
-    };
+    if textures.normal.is_set() {
+        let mapped = mapped_normal(scene, textures, slot, b, uv, ng, ns, wo);
+        return (bsdf.with_bump_shadowing(mapped, ns), mapped);
+    }
     (bsdf, ns)
 }
 

@@ -119,29 +119,11 @@ fn out_of_range_pbr_parameters_are_refused() {
     }
 }
 
-/// Single-scattering albedo of a white GGX conductor at normal incidence, by 1D quadrature
-/// independent of the renderer: normals with cosine-weighted D (x uniform, tan^2 theta_h =
-/// alpha^2 x / (1 - x)) reflect wo = +z to theta_i = 2 theta_h, visible while theta_h < 45
-/// degrees, i.e. x < 1 / (1 + alpha^2); the albedo is the integral of G2 = 1 / (1 +
-/// Lambda(theta_i)) over those x (Lambda(wo) = 0).
-fn white_ggx_albedo_at_normal_incidence(alpha: f64) -> f64 {
-    let x_max = 1.0 / (1.0 + alpha * alpha);
-    let n = 200_000;
-    let mut total = 0.0;
-    for i in 0..n {
-        let x = (i as f64 + 0.5) / n as f64 * x_max;
-        let theta_h = (alpha * (x / (1.0 - x)).sqrt()).atan();
-        let tan_i = (2.0 * theta_h).tan();
-        let lambda = 0.5 * ((1.0 + alpha * alpha * tan_i * tan_i).sqrt() - 1.0);
-        total += 1.0 / (1.0 + lambda);
-    }
-    total * x_max / n as f64
-}
-
+/// Multiscatter GGX (Blender's default): a white metal reflects all the light at every
+/// roughness. Single scattering alone would reflect 0.916 (roughness 0.5) and 1 - ln 2 =
+/// 0.307 (roughness 1) at normal incidence (`bsdf::ggx_albedo`'s tests).
 #[test]
-fn white_metal_sphere_in_a_furnace_loses_only_single_scattering_energy() {
-    // Roughness 1 (alpha 1) is known in closed form: 1 - ln 2.
-    assert!((white_ggx_albedo_at_normal_incidence(1.0) - (1.0 - 2f64.ln())).abs() < 1e-6);
+fn white_metal_sphere_in_a_furnace_reflects_all_light() {
     for roughness in [0.5f64, 1.0] {
         // A white metal sphere inside a uniformly emitting, non-reflecting sphere of radiance 1;
         // a narrow camera sees only the metal at normal incidence (cos > 0.9998), so the image
@@ -169,7 +151,6 @@ emission = [1, 1, 1]
 two_sided = true
 "#
         ));
-        let expected = white_ggx_albedo_at_normal_incidence(roughness * roughness);
         let measured = estimate(
             &scene,
             &RenderSettings {
@@ -179,9 +160,10 @@ two_sided = true
                 ..Default::default()
             },
         );
-        let exact = ([expected; 3], [0.0; 3]);
+        // The albedo table's interpolation error (< 3e-3) counts as two standard errors.
+        let exact = ([1.0; 3], [1.5e-3; 3]);
         assert_agree(
-            &format!("white metal, roughness {roughness}, expected albedo {expected:.4}"),
+            &format!("white metal, roughness {roughness}"),
             measured,
             exact,
             4.0,

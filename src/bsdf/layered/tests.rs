@@ -4,9 +4,10 @@
 //! without layers is exactly what it was.
 
 use super::*;
-use crate::bsdf::Bsdf;
 use crate::bsdf::chi_square::{ChiSquareSetup, chi_square_test};
+use crate::bsdf::ggx_albedo::energy_compensation;
 use crate::bsdf::microfacet::alpha_from_roughness;
+use crate::bsdf::{Bsdf, BumpShadowing};
 use crate::math::rng::{path_key, uniform, uniform2};
 
 fn direction(theta: f32, phi: f32) -> Vec3A {
@@ -64,6 +65,18 @@ fn cases() -> Vec<(String, Layered, Vec3A)> {
         ),
         ("coat over black", coated(lambertian(0.0), 1.0, 0.3)),
         (
+            "coat 0.1 over a normal-mapped plastic",
+            coated(
+                MetallicRoughness {
+                    // The shading normal tilted 35 degrees from the smooth one, the coat's.
+                    bump: BumpShadowing::new(direction(0.6, 2.0), Vec3A::Z),
+                    ..base(Rgb::new(0.1, 0.2, 0.6), 0.0, 0.5)
+                },
+                0.8,
+                0.1,
+            ),
+        ),
+        (
             "sheen 0.3 over plastic",
             sheened(
                 base(Rgb::new(0.3, 0.3, 0.6), 0.0, 0.8),
@@ -95,7 +108,7 @@ fn cases() -> Vec<(String, Layered, Vec3A)> {
 }
 
 #[test]
-#[ignore = "slow: chi-square of 24 cases x 1M samples (~24 s)"]
+#[ignore = "slow: chi-square of 28 cases x 1M samples (~28 s)"]
 fn sampling_matches_pdf_chi_square() {
     let cases = cases();
     let significance = 1.0 - 0.99f64.powf(1.0 / cases.len() as f64);
@@ -204,8 +217,9 @@ fn smooth_coat_over_black_reflects_its_fresnel_and_over_white_keeps_the_furnace_
 
 #[test]
 fn rough_coat_reflects_fresnel_times_the_ggx_albedo() {
-    // Over a black base a rough coat reflects clearcoat Fc(mu) E_ggx(mu): the layered sampler
-    // against the white GGX metal's (F = 1) sampler, two independent estimates.
+    // Over a black base a rough coat (single-scattering GGX) reflects clearcoat Fc(mu)
+    // E_ggx(mu): the layered sampler against the white GGX metal's (F = 1) sampler with the
+    // metal's multiscatter compensation divided out, two independent estimates.
     for (roughness, mu) in [(0.3f32, 0.8f32), (0.6, 0.4), (1.0, 0.9)] {
         let wo = Vec3A::new((1.0 - mu * mu).sqrt(), 0.0, mu);
         let fresnel = 0.04 + 0.96 * (1.0 - mu).powi(5);
@@ -219,8 +233,10 @@ fn rough_coat_reflects_fresnel_times_the_ggx_albedo() {
                 sum2 += (s.weight.x * s.weight.x) as f64;
             }
         }
+        let scale = energy_compensation(Rgb::ONE, mu, metal.alpha).x as f64;
         let e = sum / n as f64;
-        let e_sigma = ((sum2 / n as f64 - e * e) / n as f64).sqrt();
+        let e_sigma = ((sum2 / n as f64 - e * e) / n as f64).sqrt() / scale;
+        let e = e / scale;
         let expected = fresnel as f64 * e;
         let sigma = (coat_sigma.x as f64).hypot(fresnel as f64 * e_sigma);
         eprintln!(
@@ -301,8 +317,12 @@ fn layers_add_no_energy_to_white_bases() {
 
 #[test]
 fn sheen_is_reciprocal() {
+    // Over a Lambertian base: a specular layer's albedo scaling depends on wo alone.
     let m = sheened(
-        base(Rgb::new(0.5, 0.4, 0.3), 0.0, 0.6),
+        MetallicRoughness {
+            specular: 0.0,
+            ..base(Rgb::new(0.5, 0.4, 0.3), 0.0, 0.6)
+        },
         Rgb::new(0.8, 0.6, 1.0),
         0.2,
     );
@@ -317,6 +337,31 @@ fn sheen_is_reciprocal() {
             "{f} vs {g}"
         );
     }
+}
+
+#[test]
+fn the_coat_keeps_the_smooth_normal_under_a_normal_map() {
+    // Over a black base, a smooth coat reflects clearcoat Fc about its own normal: the mirror
+    // direction of wo about the smooth normal, not about the (tilted) shading normal.
+    let smooth = direction(0.6, 2.0); // the smooth normal in the shading frame
+    let m = coated(
+        MetallicRoughness {
+            bump: BumpShadowing::new(Vec3A::Z, smooth),
+            ..lambertian(0.0)
+        },
+        1.0,
+        0.05,
+    );
+    let frame = crate::math::frame::Frame::from_normal(m.base.bump.smooth_normal.into());
+    let wo = frame.to_world(direction(0.5, 0.3));
+    let mirror_about_coat = frame.to_world(direction(0.5, 0.3 + std::f32::consts::PI));
+    let mirror_about_shading = Vec3A::new(-wo.x, -wo.y, wo.z);
+    let f_coat = m.eval(wo, mirror_about_coat).x;
+    let f_shading = m.eval(wo, mirror_about_shading).x;
+    assert!(
+        f_coat > 100.0 * f_shading.max(1e-6),
+        "{f_coat} vs {f_shading}"
+    );
 }
 
 #[test]
