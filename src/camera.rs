@@ -3,6 +3,7 @@
 
 use crate::filter::{FilterSampler, PixelFilter};
 use crate::math::{Rgb, Vec2, Vec3A};
+use crate::ray_cone::RayCone;
 use crate::scene::Camera;
 
 /// A camera prepared for an image of a given size.
@@ -65,6 +66,16 @@ impl PinholeCamera {
         PinholeCamera {
             filter: FilterSampler::new(filter),
             ..self
+        }
+    }
+
+    /// The ray cone of every camera ray ([`crate::ray_cone`]): a point at the eye spreading
+    /// by one pixel's angle (its height on the image plane over the plane's distance).
+    #[inline]
+    pub fn ray_cone(&self) -> RayCone {
+        RayCone {
+            width: 0.0,
+            spread: self.pixel_down.length() / self.plane_distance,
         }
     }
 

@@ -210,7 +210,7 @@ pub fn flatten_with(
         transmits_or_absorbs: materials.transmits_or_absorbs(),
         material_absorption: materials.absorptions(),
         materials: materials.bsdfs(),
-        textures: materials.interner.textures,
+        textures: materials::mipmapped(materials.interner.textures, path)?,
         lights: lights.table,
         environment_visible,
         textured_emission: lights.textured_emission,

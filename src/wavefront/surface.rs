@@ -1,11 +1,14 @@
 //! Texture lookups at a hit, for the shade stage: vertex colours, base colour, metallic-roughness
-//! and normal maps change the material and shading normal; emission textures change the radiance a light
+//! and normal maps change the material and shading normal, read at the mipmap level the
+//! path's ray cone gives ([`crate::ray_cone`]); emission textures change the radiance a light
 //! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
 //! render scene; nothing allocates.
 
 use crate::bsdf::Bsdf;
+use crate::geometry::Shape;
 use crate::lights::{LightPoints, LightSamples};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::ray_cone::log2_uv_footprint;
 use crate::render_scene::RenderScene;
 use crate::texture::{SurfaceTextures, TextureRef};
 
@@ -19,10 +22,36 @@ where
     v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y
 }
 
-/// The texel of `t` at the primitive's coordinates `uv`.
+/// The texel of `t` at the primitive's coordinates `uv` (level 0 of its mipmaps).
 #[inline]
 fn lookup(scene: &RenderScene, t: &TextureRef, uv: Vec2) -> Rgb {
     scene.textures[t.texture as usize].lookup(t.uv_transform.apply(uv))
+}
+
+/// The colour of `t` at the primitive's coordinates `uv`, filtered over a footprint whose
+/// width in those coordinates is `2^log2_footprint` (negative infinity: level 0).
+#[inline]
+fn lookup_filtered(scene: &RenderScene, t: &TextureRef, uv: Vec2, log2_footprint: f32) -> Rgb {
+    let texture = &scene.textures[t.texture as usize];
+    let lod = texture.level_of_detail(&t.uv_transform, log2_footprint);
+    texture.lookup_at(t.uv_transform.apply(uv), lod)
+}
+
+/// `log2` of the width, in texture coordinates, of the footprint of a ray cone `width` wide
+/// at its hit on `slot` (unit geometric normal `ng`, `wo` back along the ray); negative
+/// infinity (level 0) without a cone or on a sphere (which has no texture coordinates).
+#[inline]
+fn log2_footprint(scene: &RenderScene, slot: usize, width: f32, ng: Vec3A, wo: Vec3A) -> f32 {
+    let Shape::Triangle(triangle) = scene.shape(slot) else {
+        return f32::NEG_INFINITY;
+    };
+    if !(width > 0.0) {
+        return f32::NEG_INFINITY;
+    }
+    let [a, b, c] = scene.vertex_uvs(slot);
+    let uv_area2 = (b - a).perp_dot(c - a).abs();
+    let world_area2 = triangle.e1.cross(triangle.e2).length();
+    log2_uv_footprint(width, ng.dot(wo), world_area2, uv_area2)
 }
 
 /// The shading normal at barycentrics `b` of the primitive in `slot`, whose unit geometric
@@ -44,6 +73,8 @@ pub(super) fn shading_normal(scene: &RenderScene, slot: usize, b: Vec2, ng: Vec3
 /// shading normal, normal-mapped if the material has a normal map. `ng` is the geometric
 /// normal, `ns` the interpolated shading normal (on `ng`'s side) and `wo` the direction back
 /// along the ray.
+/// Textures are read at level 0 of their mipmaps (no footprint: light paths and their
+/// vertices); [`textured_surface_in_cone`] filters them over a ray cone's footprint.
 #[inline]
 pub(super) fn textured_surface(
     scene: &RenderScene,
@@ -54,6 +85,24 @@ pub(super) fn textured_surface(
     ns: Vec3A,
     wo: Vec3A,
 ) -> (Bsdf, Vec3A) {
+    textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, 0.0)
+}
+
+/// [`textured_surface`] for a ray whose cone is `cone_width` wide at the hit
+/// ([`crate::ray_cone::RayCone::width_at`]): colour, metallic-roughness and normal textures
+/// are read at the mipmap level of the cone's footprint; alpha (specular strength) at level 0.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn textured_surface_in_cone(
+    scene: &RenderScene,
+    material: usize,
+    slot: usize,
+    b: Vec2,
+    ng: Vec3A,
+    ns: Vec3A,
+    wo: Vec3A,
+    cone_width: f32,
+) -> (Bsdf, Vec3A) {
     let mut bsdf = scene.materials[material];
     if scene.has_vertex_colors() {
         bsdf = bsdf.tinted(interpolate(scene.vertex_colors(slot), b).truncate());
@@ -63,18 +112,19 @@ pub(super) fn textured_surface(
         return (bsdf, ns);
     }
     let uv = interpolate(scene.vertex_uvs(slot), b);
+    let footprint = log2_footprint(scene, slot, cone_width, ng, wo);
     if textures.base_color.is_set() {
-        bsdf = bsdf.tinted(lookup(scene, &textures.base_color, uv));
+        bsdf = bsdf.tinted(lookup_filtered(scene, &textures.base_color, uv, footprint));
     }
     if textures.metallic_roughness.is_set() {
-        let c = lookup(scene, &textures.metallic_roughness, uv);
+        let c = lookup_filtered(scene, &textures.metallic_roughness, uv, footprint);
         bsdf = bsdf.with_metallic_roughness_scaled(c.z, c.y);
     }
     if textures.specular.is_set() || textures.specular_color.is_set() {
-        bsdf = specular_textured(scene, textures, uv, bsdf);
+        bsdf = specular_textured(scene, textures, (uv, footprint), bsdf);
     }
     let ns = if textures.normal.is_set() {
-        mapped_normal(scene, textures, slot, b, uv, ng, ns, wo)
+        mapped_normal(scene, textures, slot, b, (uv, footprint), ng, ns, wo)
     } else {
         ns
     };
@@ -87,7 +137,7 @@ pub(super) fn textured_surface(
 fn specular_textured(
     scene: &RenderScene,
     textures: &SurfaceTextures,
-    uv: Vec2,
+    (uv, footprint): (Vec2, f32),
     bsdf: Bsdf,
 ) -> Bsdf {
     let strength = if textures.specular.is_set() {
@@ -97,7 +147,7 @@ fn specular_textured(
         1.0
     };
     let colour = if textures.specular_color.is_set() {
-        lookup(scene, &textures.specular_color, uv)
+        lookup_filtered(scene, &textures.specular_color, uv, footprint)
     } else {
         Rgb::ONE
     };
@@ -117,7 +167,7 @@ fn mapped_normal(
     textures: &SurfaceTextures,
     slot: usize,
     b: Vec2,
-    uv: Vec2,
+    (uv, footprint): (Vec2, f32),
     ng: Vec3A,
     ns: Vec3A,
     wo: Vec3A,
@@ -131,7 +181,7 @@ fn mapped_normal(
     }
     let handedness = if tangents[0].w < 0.0 { -1.0 } else { 1.0 };
     let bitangent = ns.cross(tangent) * handedness;
-    let c = lookup(scene, &textures.normal, uv);
+    let c = lookup_filtered(scene, &textures.normal, uv, footprint);
     let s = textures.normal_scale;
     let m = Vec3A::new(
         (2.0 * c.x - 1.0) * s,

@@ -44,6 +44,7 @@ mod next_event;
 mod placement;
 mod sampler;
 mod shipped_scenes;
+mod texture_filtering;
 mod textures;
 mod transmission;
 mod unlit;

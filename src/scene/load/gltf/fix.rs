@@ -233,22 +233,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "primitive",
     );
-    warn_count(
-        path,
-        warnings,
-        "minification filters are ignored: textures are sampled bilinearly without mipmaps",
-        document
-            .samplers()
-            .filter(|s| {
-                use gltf::texture::MinFilter as F;
-                matches!(
-                    s.min_filter(),
-                    Some(F::Nearest | F::NearestMipmapNearest | F::NearestMipmapLinear)
-                )
-            })
-            .count(),
-        "sampler",
-    );
     let file = path.display();
     for name in document.extensions_used() {
         if !SUPPORTED_REQUIRED.contains(&name)

@@ -8,7 +8,7 @@
 
 use crate::math::Rgb;
 use crate::scene::TextureSlot;
-use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
+use crate::texture::{Encoding, Filter, MinFilter, Texture, UvTransform, Wrap};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -216,9 +216,24 @@ pub(super) fn import_textures(
             Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
             _ => Filter::Linear,
         };
+        decoded.min_filter = min_filter(sampler.min_filter());
         out.insert((index, encoding), Arc::new(decoded));
     }
     out
+}
+
+/// The sampler's `minFilter` (trilinear when the file does not say: what Cycles and
+/// Blender's importer do with mipmapped textures).
+fn min_filter(filter: Option<gltf::texture::MinFilter>) -> MinFilter {
+    use gltf::texture::MinFilter as F;
+    match filter {
+        Some(F::Nearest) => MinFilter::Nearest,
+        Some(F::Linear) => MinFilter::Linear,
+        Some(F::NearestMipmapNearest) => MinFilter::NearestMipmapNearest,
+        Some(F::LinearMipmapNearest) => MinFilter::LinearMipmapNearest,
+        Some(F::NearestMipmapLinear) => MinFilter::NearestMipmapLinear,
+        Some(F::LinearMipmapLinear) | None => MinFilter::LinearMipmapLinear,
+    }
 }
 
 /// A texture reference's slot and UV set (`KHR_texture_transform` may override the set).
