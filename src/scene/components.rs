@@ -315,7 +315,22 @@ pub enum EnvironmentSource {
     File(PathBuf),
 }
 
-/// A pinhole camera in world space.
+/// How a camera projects the scene onto its film.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Projection {
+    /// Rays from the eye through the film, spanning the vertical field of view `vfov`.
+    #[default]
+    Perspective,
+    /// Parallel rays along `forward` from a film through the eye, `2 half_height` world
+    /// units tall (glTF's `ymag` is the half height); its width follows the image's aspect
+    /// ratio. `vfov` is unused.
+    Orthographic {
+        /// Half the film's height, world units.
+        half_height: f32,
+    },
+}
+
+/// A camera in world space: a pinhole, or orthographic ([`Projection`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     /// Centre of projection.
@@ -328,6 +343,8 @@ pub struct Camera {
     pub vfov: f32,
     /// Width / height the camera was made for, if it dictates one.
     pub aspect_ratio: Option<f32>,
+    /// Perspective or orthographic.
+    pub projection: Projection,
 }
 
 impl Camera {
@@ -341,7 +358,13 @@ impl Camera {
             up: right.cross(forward),
             vfov,
             aspect_ratio: None,
+            projection: Projection::Perspective,
         }
+    }
+
+    /// Whether the camera is orthographic.
+    pub fn is_orthographic(&self) -> bool {
+        matches!(self.projection, Projection::Orthographic { .. })
     }
 }
 

@@ -41,6 +41,7 @@ mod memory;
 mod meshopt;
 mod mis;
 mod next_event;
+mod orthographic;
 mod placement;
 mod sampler;
 mod shipped_scenes;
