@@ -758,12 +758,31 @@ impl SurfaceTextures {
     }
 }
 
-/// The emission texture of one triangle light. Its [`crate::lights::AreaLight::radiance`] is
-/// `radiance` times the texture's mean (the power estimate that chooses lights); the radiance
-/// leaving a point is `radiance` times the texel there.
+/// The alpha coverage (MASK or BLEND) of an emitting triangle, as light sampling weighs
+/// its points: the coverage is the material's factor x the base-colour texture's alpha
+/// (level 0) x the vertex colours' alpha; a sampled point emits its radiance times the
+/// coverage (BLEND, as Cycles' mix of transparent and emission shaders) or times whether the
+/// coverage reaches the cutoff (MASK). Rays that hit the surface pass the coverage test
+/// already, so a hit sees the radiance in full.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionCoverage {
+    /// MASK (with its cutoff) or BLEND.
+    pub mode: crate::scene::AlphaMode,
+    /// The material's alpha factor.
+    pub factor: f32,
+    /// The base-colour texture, when its alpha counts (else unset).
+    pub texture: TextureRef,
+    /// The vertex colours' alpha at the triangle's vertices (1 without).
+    pub vertex_alpha: [f32; 3],
+}
+
+/// The emission texture and alpha coverage of one triangle light (either may be absent). Its
+/// [`crate::lights::AreaLight::radiance`] is `radiance` times the texture's mean (the power
+/// estimate that chooses lights); the radiance leaving a point is `radiance` times the texel
+/// there (times the coverage for a point light sampling chose: [`EmissionCoverage`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TexturedEmission {
-    /// The emissive texture.
+    /// The emissive texture (unset: none).
     pub texture: TextureRef,
     /// The emitter's radiance before the texture (`emissiveFactor` x strength).
     pub radiance: Rgb,
@@ -772,6 +791,8 @@ pub struct TexturedEmission {
     pub inverse_mean: Rgb,
     /// Texture coordinates of the triangle's vertices, in the light's vertex order.
     pub uvs: [Vec2; 3],
+    /// The alpha coverage of an emitter with alpha MASK or BLEND.
+    pub coverage: Option<EmissionCoverage>,
 }
 
 #[cfg(test)]

@@ -310,6 +310,14 @@ impl<'w> Primitives<'w> {
         }
     }
 
+    /// The vertex colours' alpha of primitive `prim` (1 for a sphere or without colours).
+    fn vertex_alphas(&self, prim: usize) -> [f32; 3] {
+        match self.locate(prim) {
+            (Source::Mesh(mesh), t) => mesh.colors(t).map(|c| c.w),
+            (Source::Sphere(_), _) => [1.0; 3],
+        }
+    }
+
     /// The texture coordinates of primitive `prim` (zero for a sphere).
     fn uvs(&self, prim: usize) -> [Vec2; 3] {
         match self.locate(prim) {

@@ -10,7 +10,8 @@ use crate::lights::{LightPoints, LightSamples};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::ray_cone::log2_uv_footprint;
 use crate::render_scene::RenderScene;
-use crate::texture::{SurfaceTextures, TextureRef};
+use crate::scene::AlphaMode;
+use crate::texture::{SurfaceTextures, TextureRef, TexturedEmission};
 
 /// Value at barycentrics `b` of a triangle whose vertices hold `v`.
 #[inline]
@@ -197,20 +198,60 @@ fn mapped_normal(
     }
 }
 
-/// Radiance leaving area light `light` at barycentrics `b` of its triangle: its texel times
-/// its factor if it has an emission texture, else its constant radiance.
+/// Radiance leaving area light `light` at barycentrics `b` of its triangle where a ray hit
+/// it: its texel times its factor if it has an emission texture, else its constant radiance.
+/// (A ray that hits an alpha-tested emitter has passed its coverage test: no coverage here.)
 #[inline]
 pub(super) fn emitted_radiance(scene: &RenderScene, light: u32, b: Vec2) -> Rgb {
     match scene.textured_emission.get(light as usize) {
-        Some(Some(e)) => e.radiance * lookup(scene, &e.texture, interpolate(e.uvs, b)),
+        Some(Some(e)) => e.radiance * emission_texel(scene, e, b),
         _ => scene.lights.lights[light as usize].radiance,
+    }
+}
+
+/// Radiance leaving area light `light` at barycentrics `b` of its triangle where light
+/// sampling chose the point (a light path's start): [`emitted_radiance`] times the
+/// emitter's alpha coverage there ([`EmissionCoverage`]).
+#[inline]
+pub(super) fn sampled_emitted_radiance(scene: &RenderScene, light: u32, b: Vec2) -> Rgb {
+    match scene.textured_emission.get(light as usize) {
+        Some(Some(e)) => e.radiance * emission_texel(scene, e, b) * emission_coverage(scene, e, b),
+        _ => scene.lights.lights[light as usize].radiance,
+    }
+}
+
+/// The emission texel of `e` at barycentrics `b` (1 without an emission texture).
+#[inline]
+fn emission_texel(scene: &RenderScene, e: &TexturedEmission, b: Vec2) -> Rgb {
+    if e.texture.is_set() {
+        lookup(scene, &e.texture, interpolate(e.uvs, b))
+    } else {
+        Rgb::ONE
+    }
+}
+
+/// The weight of a sampled point at barycentrics `b` of the emitter of `e` for its alpha
+/// coverage: the coverage (BLEND) or whether it reaches the cutoff (MASK); 1 when opaque.
+#[inline]
+fn emission_coverage(scene: &RenderScene, e: &TexturedEmission, b: Vec2) -> f32 {
+    let Some(c) = &e.coverage else {
+        return 1.0;
+    };
+    let mut alpha = c.factor * interpolate(c.vertex_alpha, b);
+    if c.texture.is_set() {
+        let uv = c.texture.uv_transform.apply(interpolate(e.uvs, b));
+        alpha *= scene.textures[c.texture.texture as usize].lookup_alpha(uv);
+    }
+    match c.mode {
+        AlphaMode::Blend => alpha.clamp(0.0, 1.0),
+        AlphaMode::Mask { cutoff } => f32::from(u8::from(alpha >= cutoff)),
     }
 }
 
 /// Rescales the radiance of each lane of `samples` that chose a light with an emission
 /// texture by texel / mean at the sampled point: the table chose and weighted the light as if
 /// it emitted its mean radiance everywhere (the density is unchanged: the estimate stays
-/// unbiased).
+/// unbiased); and by the coverage there for an alpha-tested emitter.
 #[inline]
 pub(super) fn texture_light_samples(
     scene: &RenderScene,
@@ -235,8 +276,8 @@ fn textured_radiance(scene: &RenderScene, radiance: [Vec4; 3], points: LightPoin
     let mut by_channel = radiance.map(|c| c.to_array());
     for (k, light) in area_light.into_iter().enumerate() {
         if let Some(Some(e)) = scene.textured_emission.get(light as usize) {
-            let uv = interpolate(e.uvs, Vec2::new(barycentric[0][k], barycentric[1][k]));
-            let texel = lookup(scene, &e.texture, uv);
+            let b = Vec2::new(barycentric[0][k], barycentric[1][k]);
+            let texel = emission_texel(scene, e, b) * emission_coverage(scene, e, b);
             let lane = Rgb::new(by_channel[0][k], by_channel[1][k], by_channel[2][k]);
             let textured = lane * e.inverse_mean * texel;
             for (channel, value) in by_channel.iter_mut().zip(textured.to_array()) {
