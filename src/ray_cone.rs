@@ -47,15 +47,17 @@ impl RayCone {
 
 /// `log2` of the width, in the mesh's texture coordinates, of the footprint of a cone of
 /// `width` meeting a triangle at `cos` (the cosine between the ray and the geometric
-/// normal), the triangle's doubled areas being `world_area2` and `uv_area2`: the paper's
-/// level of detail before the texture's own size, `0.5 log2(uv / world) + log2(width / cos)`
-/// (the footprint stretched along its long axis at grazing angles: an isotropic filter that
-/// blurs rather than aliases). Negative infinity (level 0) where there is no footprint (zero
-/// width or no texture coordinates); positive infinity (the last level) at a grazing cosine
-/// of zero.
+/// normal), the triangle's doubled areas being `world_area2` and `uv_area2`: the level of
+/// detail before the texture's own size, `0.5 log2(uv / world) + log2(width / sqrt(cos))`.
+/// The footprint is an ellipse `width` across and `width / cos` long; the isotropic filter
+/// takes the side of a square of its area, where the paper takes its long axis
+/// (`log2(width / cos)`), which at grazing angles blurred the checkerboard of
+/// `tests/e2e/texture_filtering.rs` across the footprint (docs/importing.md, Texture
+/// filtering). Negative infinity (level 0) where there is no footprint (zero width or no
+/// texture coordinates); positive infinity (the last level) at a grazing cosine of zero.
 #[inline]
 pub fn log2_uv_footprint(width: f32, cos: f32, world_area2: f32, uv_area2: f32) -> f32 {
-    0.5 * (uv_area2 / world_area2).log2() + (width / cos.abs()).log2()
+    0.5 * (uv_area2 / world_area2).log2() + width.log2() - 0.5 * cos.abs().log2()
 }
 
 #[cfg(test)]
@@ -80,7 +82,7 @@ mod tests {
     }
 
     #[test]
-    fn the_footprint_doubles_with_the_width_and_at_sixty_degrees() {
+    fn the_footprint_doubles_with_the_width_and_at_a_quarter_cosine() {
         // A unit right triangle mapped to a quarter of the texture square: 0.5 uv per world
         // unit along each axis.
         let (world, uv) = (1.0, 0.25);
@@ -90,7 +92,7 @@ mod tests {
             "0.5 world = 0.25 uv: {head_on}"
         );
         assert!((log2_uv_footprint(1.0, 1.0, world, uv) - (head_on + 1.0)).abs() < 1e-6);
-        assert!((log2_uv_footprint(0.5, 0.5, world, uv) - (head_on + 1.0)).abs() < 1e-6);
+        assert!((log2_uv_footprint(0.5, 0.25, world, uv) - (head_on + 1.0)).abs() < 1e-6);
         assert_eq!(log2_uv_footprint(0.0, 1.0, world, uv), f32::NEG_INFINITY);
         assert_eq!(log2_uv_footprint(0.5, 1.0, world, 0.0), f32::NEG_INFINITY);
         assert_eq!(log2_uv_footprint(0.5, 0.0, world, uv), f32::INFINITY);
