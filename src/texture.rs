@@ -744,6 +744,14 @@ pub struct SurfaceTextures {
     pub specular: TextureRef,
     /// Multiplies the dielectric's `specular_color` (`KHR_materials_specular`).
     pub specular_color: TextureRef,
+    /// Red multiplies the clearcoat (`KHR_materials_clearcoat`).
+    pub clearcoat: TextureRef,
+    /// Green multiplies the clearcoat's roughness.
+    pub clearcoat_roughness: TextureRef,
+    /// Multiplies the sheen colour (`KHR_materials_sheen`).
+    pub sheen_color: TextureRef,
+    /// Alpha multiplies the sheen's roughness.
+    pub sheen_roughness: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -754,7 +762,17 @@ impl SurfaceTextures {
             || self.metallic_roughness.is_set()
             || self.normal.is_set()
             || self.specular.is_set()
-            || self.specular_color.is_set())
+            || self.specular_color.is_set()
+            || self.has_layer_textures())
+    }
+
+    /// Whether a clearcoat or sheen texture is set.
+    #[inline]
+    pub fn has_layer_textures(&self) -> bool {
+        self.clearcoat.is_set()
+            || self.clearcoat_roughness.is_set()
+            || self.sheen_color.is_set()
+            || self.sheen_roughness.is_set()
     }
 }
 

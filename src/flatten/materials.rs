@@ -163,6 +163,10 @@ impl TextureInterner {
             normal_scale: t.normal_scale,
             specular: self.intern(t.specular.as_ref()),
             specular_color: self.intern(t.specular_color.as_ref()),
+            clearcoat: self.intern(t.clearcoat.as_ref()),
+            clearcoat_roughness: self.intern(t.clearcoat_roughness.as_ref()),
+            sheen_color: self.intern(t.sheen_color.as_ref()),
+            sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
         }
     }
 }

@@ -175,6 +175,15 @@ pub struct MaterialTextures {
     /// `KHR_materials_specular` `specularColorTexture`: linear colour (decoded from sRGB)
     /// that multiplies `specular_color`.
     pub specular_color: Option<TextureSlot>,
+    /// `KHR_materials_clearcoat` `clearcoatTexture`: red (linear) multiplies `clearcoat`.
+    pub clearcoat: Option<TextureSlot>,
+    /// `clearcoatRoughnessTexture`: green (linear) multiplies `clearcoat_roughness`.
+    pub clearcoat_roughness: Option<TextureSlot>,
+    /// `KHR_materials_sheen` `sheenColorTexture`: colour (decoded from sRGB) that multiplies
+    /// `sheen_color`.
+    pub sheen_color: Option<TextureSlot>,
+    /// `sheenRoughnessTexture`: alpha (linear) multiplies `sheen_roughness`.
+    pub sheen_roughness: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -186,6 +195,10 @@ impl MaterialTextures {
             && self.emissive.is_none()
             && self.specular.is_none()
             && self.specular_color.is_none()
+            && self.clearcoat.is_none()
+            && self.clearcoat_roughness.is_none()
+            && self.sheen_color.is_none()
+            && self.sheen_roughness.is_none()
     }
 }
 

@@ -124,6 +124,9 @@ pub(super) fn textured_surface_in_cone(
     if textures.specular.is_set() || textures.specular_color.is_set() {
         bsdf = specular_textured(scene, textures, (uv, footprint), bsdf);
     }
+    if textures.has_layer_textures() {
+        bsdf = layers_textured(scene, textures, (uv, footprint), bsdf);
+    }
     let ns = if textures.normal.is_set() {
         mapped_normal(scene, textures, slot, b, (uv, footprint), ng, ns, wo)
     } else {
@@ -153,6 +156,38 @@ fn specular_textured(
         Rgb::ONE
     };
     bsdf.with_specular_scaled(strength, colour)
+}
+
+/// `bsdf` with its clearcoat and sheen scaled by the `KHR_materials_clearcoat` and `_sheen`
+/// textures: clearcoat by the red of `clearcoatTexture`, its roughness by the green of
+/// `clearcoatRoughnessTexture`, the sheen colour by `sheenColorTexture`, its roughness by
+/// the alpha of `sheenRoughnessTexture` (level 0, as every alpha).
+#[inline(never)]
+fn layers_textured(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    (uv, footprint): (Vec2, f32),
+    bsdf: Bsdf,
+) -> Bsdf {
+    let colour = |t: &TextureRef| {
+        if t.is_set() {
+            lookup_filtered(scene, t, uv, footprint)
+        } else {
+            Rgb::ONE
+        }
+    };
+    let sheen_roughness = if textures.sheen_roughness.is_set() {
+        let t = &textures.sheen_roughness;
+        scene.textures[t.texture as usize].lookup_alpha(t.uv_transform.apply(uv))
+    } else {
+        1.0
+    };
+    bsdf.with_layers_scaled(
+        colour(&textures.clearcoat).x,
+        colour(&textures.clearcoat_roughness).y,
+        colour(&textures.sheen_color),
+        sheen_roughness,
+    )
 }
 
 /// The shading normal from a tangent-space normal map. The tangent is made orthogonal to
@@ -381,6 +416,56 @@ mod tests {
             "alpha {alpha}, roughness {}",
             alpha.sqrt()
         );
+    }
+
+    #[test]
+    fn clearcoat_and_sheen_textures_scale_their_factors_by_their_channels() {
+        let dir = tempfile::tempdir().unwrap();
+        // Clearcoat 1 (roughness 1) and white sheen (roughness 1); one RGBA texture of
+        // (128, 64, 188, 51) serves every slot: clearcoat takes red (linear 0.502), its
+        // roughness green (0.251), the sheen colour sRGB (0.2158, 0.0513, 0.5029), the sheen
+        // roughness alpha (0.2).
+        let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "extensions": {
+                "KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                    "clearcoatRoughnessFactor": 1.0, "clearcoatTexture": {"index": 0},
+                    "clearcoatRoughnessTexture": {"index": 0}},
+                "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0],
+                    "sheenRoughnessFactor": 1.0, "sheenColorTexture": {"index": 0},
+                    "sheenRoughnessTexture": {"index": 0}}}}"#;
+        let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 64, 188, 51]));
+        let path = textured_quad(dir.path(), material, &[texel]);
+        let loaded = crate::load_scene(&path).unwrap();
+        assert!(
+            !loaded
+                .warnings
+                .iter()
+                .any(|w| w.contains("sheen") || w.contains("clearcoat")),
+            "{:?}",
+            loaded.warnings
+        );
+        let scene = crate::flatten(&loaded.world, &path).unwrap();
+        let slot = (scene.material.iter())
+            .position(|&m| scene.material_textures[m as usize].has_layer_textures())
+            .expect("the quad's material reads the layer textures");
+        let material = scene.material[slot] as usize;
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let Bsdf::Layered(layered) = bsdf else {
+            panic!("{bsdf:?}")
+        };
+        let (red, green) = (128.0f32 / 255.0, 64.0f32 / 255.0);
+        assert!((layered.clearcoat - red).abs() < 1e-6, "{layered:?}");
+        assert!(
+            (layered.clearcoat_alpha - green * green).abs() < 1e-6,
+            "{layered:?}"
+        );
+        let expected = Rgb::new(0.2158605, 0.0512695, 0.5028865);
+        assert!(
+            (layered.sheen_color - expected).abs().max_element() < 1e-4,
+            "{layered:?}"
+        );
+        assert!((layered.sheen_roughness - 0.2).abs() < 1e-6, "{layered:?}");
     }
 
     #[test]
