@@ -33,7 +33,7 @@ impl RayCone {
     /// at most [`MAX_SPREAD`]) after a non-delta one.
     #[inline(always)]
     pub fn after_bounce(self, t: f32, is_delta: bool, pdf: f32) -> RayCone {
-        let lobe = if is_delta || !(pdf > 0.0) {
+        let lobe = if is_delta || pdf.is_nan() || pdf <= 0.0 {
             0.0
         } else {
             pdf.sqrt().recip().min(MAX_SPREAD)

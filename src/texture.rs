@@ -653,8 +653,7 @@ impl Mipmapped {
     /// nearest as the sampler says, clamped to the last level.
     #[inline]
     pub fn lookup_at(&self, uv: Vec2, lod: f32) -> Rgb {
-        // `!(lod > 0)` also catches NaN.
-        if !(lod > 0.0) {
+        if lod.is_nan() || lod <= 0.0 {
             return self.image.lookup(uv);
         }
         let (filter, blend) = self.image.min_filter.parts();

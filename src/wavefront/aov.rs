@@ -93,7 +93,7 @@ pub fn record_first_surfaces(
         let wo = -direction;
         let ns = surface::shading_normal(scene, slot, barycentric, ng);
         let material = scene.material_of(slot) as usize;
-        let width = cones[i].width_at(t);
+        let width = cones.get(i).map_or(0.0, |cone| cone.width_at(t));
         let (bsdf, ns) = surface::textured_surface_in_cone(
             scene,
             material,

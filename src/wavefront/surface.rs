@@ -46,7 +46,7 @@ fn log2_footprint(scene: &RenderScene, slot: usize, width: f32, ng: Vec3A, wo: V
     let Shape::Triangle(triangle) = scene.shape(slot) else {
         return f32::NEG_INFINITY;
     };
-    if !(width > 0.0) {
+    if width.is_nan() || width <= 0.0 {
         return f32::NEG_INFINITY;
     }
     let [a, b, c] = scene.vertex_uvs(slot);
