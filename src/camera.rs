@@ -1,15 +1,21 @@
-//! The pinhole camera: film coordinates to world-space rays and back, with the pixel filter
-//! that places each camera sample around its pixel ([`crate::filter`]).
+//! The camera as the render uses it, pinhole or orthographic: film coordinates to
+//! world-space rays and back, with the pixel filter that places each camera sample around
+//! its pixel ([`crate::filter`]) and each camera ray's cone ([`crate::ray_cone`]).
 
 use crate::filter::{FilterSampler, PixelFilter};
 use crate::math::{Rgb, Vec2, Vec3A};
-use crate::scene::Camera;
+use crate::ray_cone::RayCone;
+use crate::scene::{Camera, Projection};
 
-/// A camera prepared for an image of a given size.
+/// A camera prepared for an image of a given size: a pinhole, or orthographic (parallel
+/// rays from a film through the eye, perpendicular to it).
 #[derive(Clone, Copy, Debug)]
 pub struct PinholeCamera {
     eye: Vec3A,
-    /// Image-plane point of the film's top-left corner, at unit distance from the eye.
+    /// Whether rays are parallel (orthographic) rather than from the eye.
+    orthographic: bool,
+    /// Image-plane point of the film's top-left corner, relative to the eye: at unit
+    /// distance in front of it (pinhole), or in the film's plane through it (orthographic).
     top_left: Vec3A,
     /// Step across one pixel to the right, in world units on that plane.
     pixel_right: Vec3A,
@@ -27,15 +33,18 @@ pub struct PinholeCamera {
 }
 
 impl PinholeCamera {
-    /// The camera for a `width` x `height` film; the vertical field of view is kept and the
-    /// horizontal one follows the film's aspect ratio.
+    /// The camera for a `width` x `height` film; the vertical field of view (or, orthographic,
+    /// the film's height) is kept and the horizontal one follows the film's aspect ratio.
     pub fn new(camera: &Camera, width: u32, height: u32) -> Self {
         let forward = Vec3A::from(camera.forward);
         let up = Vec3A::from(camera.up);
         let right = forward.cross(up).normalize();
-        let half_height = (camera.vfov * 0.5).tan();
+        let (half_height, centre, orthographic) = match camera.projection {
+            Projection::Perspective => ((camera.vfov * 0.5).tan(), forward, false),
+            Projection::Orthographic { half_height } => (half_height, Vec3A::ZERO, true),
+        };
         let half_width = half_height * width as f32 / height as f32;
-        let top_left = forward - half_width * right + half_height * up;
+        let top_left = centre - half_width * right + half_height * up;
         let pixel_right = right * (2.0 * half_width / width as f32);
         let pixel_down = -up * (2.0 * half_height / height as f32);
         // The plane spanned by the pixel steps (perpendicular to `forward` unless the up
@@ -48,6 +57,7 @@ impl PinholeCamera {
         };
         PinholeCamera {
             eye: camera.eye.into(),
+            orthographic,
             top_left,
             pixel_right,
             pixel_down,
@@ -68,6 +78,31 @@ impl PinholeCamera {
         }
     }
 
+    /// The ray cone of every camera ray ([`crate::ray_cone`]): a point at the eye spreading
+    /// by one pixel's angle (its height on the image plane over the plane's distance), or,
+    /// orthographic, one pixel's height that does not spread.
+    #[inline]
+    pub fn ray_cone(&self) -> RayCone {
+        if self.orthographic {
+            return RayCone {
+                width: self.pixel_down.length(),
+                spread: 0.0,
+            };
+        }
+        RayCone {
+            width: 0.0,
+            spread: self.pixel_down.length() / self.plane_distance,
+        }
+    }
+
+    /// Whether the camera is orthographic. Its rays' directions are all the same (a delta
+    /// density, [`Self::direction_density`] is 0): light paths cannot reach its film, and
+    /// the render traces none for it (`wavefront::light_paths::caustics_traced`).
+    #[inline]
+    pub fn is_orthographic(&self) -> bool {
+        self.orthographic
+    }
+
     /// The eye (the pinhole).
     #[inline]
     pub fn eye(&self) -> Vec3A {
@@ -82,17 +117,20 @@ impl PinholeCamera {
     /// for a pixel is this times the filter's density at the offset from the pixel's centre
     /// ([`Self::splat`] applies it); the caustics' MIS weights use this one on both sides, which
     /// keeps their sum 1 (an unbiased, if not exactly balanced, heuristic).
+    /// An orthographic camera's rays all share one direction: 0.
     #[inline]
     pub fn direction_density(&self, direction: Vec3A) -> f32 {
         let cos = direction.dot(self.plane_normal);
-        if cos <= 0.0 {
+        if cos <= 0.0 || self.orthographic {
             return 0.0;
         }
         self.plane_distance * self.plane_distance / (self.pixel_area * cos * cos * cos)
     }
 
     /// The film position (pixels from the film's top-left corner, x right, y down) the world
-    /// point `p` projects to, if it lies in front of the camera; it may lie off the film.
+    /// point `p` projects to, if it lies in front of the camera (of its film's plane,
+    /// orthographic); it may lie off the film. Through the eye, or orthographic along the
+    /// plane's normal.
     #[inline]
     pub fn film_position(&self, p: Vec3A) -> Option<Vec2> {
         let d = p - self.eye;
@@ -100,7 +138,11 @@ impl PinholeCamera {
         if along <= 0.0 || !along.is_finite() {
             return None;
         }
-        let on_plane = d * (self.plane_distance / along) - self.top_left;
+        let on_plane = if self.orthographic {
+            d - self.plane_normal * along - self.top_left
+        } else {
+            d * (self.plane_distance / along) - self.top_left
+        };
         let x = on_plane.dot(self.pixel_right) / self.pixel_right.length_squared();
         let y = on_plane.dot(self.pixel_down) / self.pixel_down.length_squared();
         Some(Vec2::new(x, y))
@@ -139,13 +181,17 @@ impl PinholeCamera {
 
     /// The camera ray of pixel `pixel` (row-major, row 0 at the top) for the uniform pair `u`
     /// in [0,1)^2: through the film position the pixel filter draws from `u` (with the box of
-    /// 1 px, `u` itself inside the pixel); origin and unit direction.
+    /// 1 px, `u` itself inside the pixel); origin and unit direction. Orthographic: from that
+    /// film position along the film's normal.
     #[inline]
     pub fn generate_ray(&self, pixel: u32, u: Vec2) -> (Vec3A, Vec3A) {
         let jitter = self.filter.sample_jitter(u);
         let x = (pixel % self.width) as f32 + jitter.x;
         let y = (pixel / self.width) as f32 + jitter.y;
         let d = self.top_left + x * self.pixel_right + y * self.pixel_down;
+        if self.orthographic {
+            return (self.eye + d, self.plane_normal);
+        }
         (self.eye, d.normalize())
     }
 }
@@ -193,6 +239,41 @@ mod tests {
             assert_eq!(cam.pixel_of(o + 3.7 * d), Some(pixel));
         }
         assert_eq!(cam.pixel_of(cam.eye() - Vec3A::new(0.0, 1.0, 0.0)), None);
+    }
+
+    #[test]
+    fn an_orthographic_film_spans_its_magnification_and_inverts() {
+        // ymag 2 (film 4 tall) on a 40 x 20 image: 8 wide, every ray along forward (+x).
+        let mut c = Camera::look_at(Vec3::new(-3.0, 0.0, 0.0), Vec3::ZERO, Vec3::Z, 1.0);
+        c.projection = Projection::Orthographic { half_height: 2.0 };
+        let cam = PinholeCamera::new(&c, 40, 20);
+        let (o, d) = cam.generate_ray(0, Vec2::ZERO);
+        assert!(
+            (o - Vec3A::new(-3.0, 4.0, 2.0)).length() < 1e-5,
+            "top-left {o}"
+        );
+        assert_eq!(d, Vec3A::X);
+        let (o, d) = cam.generate_ray(40 * 20 - 1, Vec2::ONE);
+        assert!(
+            (o - Vec3A::new(-3.0, -4.0, -2.0)).length() < 1e-5,
+            "bottom-right {o}"
+        );
+        assert_eq!(d, Vec3A::X);
+        for pixel in [0, 7, 39, 40 * 9 + 21, 40 * 20 - 1] {
+            let (o, d) = cam.generate_ray(pixel, Vec2::new(0.25, 0.75));
+            assert_eq!(cam.pixel_of(o + 11.0 * d), Some(pixel));
+        }
+        assert_eq!(
+            cam.pixel_of(Vec3A::new(-3.5, 0.0, 0.0)),
+            None,
+            "behind the film"
+        );
+        assert_eq!(cam.direction_density(Vec3A::X), 0.0, "a delta in direction");
+        let cone = cam.ray_cone();
+        assert!(
+            (cone.width - 0.2).abs() < 1e-6 && cone.spread == 0.0,
+            "{cone:?}"
+        );
     }
 
     #[test]

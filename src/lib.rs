@@ -44,6 +44,7 @@ pub(crate) mod lights;
 pub mod math;
 pub(crate) mod memory;
 pub mod output;
+pub(crate) mod ray_cone;
 pub(crate) mod render_scene;
 pub mod scene;
 pub mod settings;
@@ -74,7 +75,7 @@ pub mod internals {
     pub use crate::lights::environment::Environment;
     pub use crate::memory::trace_phase;
     pub use crate::render_scene::{PACKET_SIZE, Packet, Ray, TraversalStack};
-    pub use crate::texture::{SurfaceTextures, Texture, TextureRef};
+    pub use crate::texture::{MinFilter, Mipmapped, SurfaceTextures, Texture, TextureRef};
     pub use crate::wavefront::batch::{HitBatch, PathState, RayBatch, ShadowBatch};
     pub use crate::wavefront::generate::generate_camera_rays;
     pub use crate::wavefront::intersect::intersect_closest;

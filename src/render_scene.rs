@@ -18,9 +18,8 @@ use crate::geometry::triangle::{OriginTerms, intersect_triangle_from};
 use crate::lights::LightTable;
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::Camera;
-use crate::texture::{SurfaceTextures, Texture, TexturedEmission};
+use crate::texture::{Mipmapped, SurfaceTextures, TexturedEmission};
 use obvhs::aabb::Aabb;
-use std::sync::Arc;
 use std::time::Duration;
 
 // The query API's types, so that its callers need not know the accelerators' modules.
@@ -83,8 +82,8 @@ pub struct RenderScene {
     pub(crate) transmits_or_absorbs: bool,
     /// Textures per material, looked up at the hit's texture coordinates.
     pub(crate) material_textures: Vec<SurfaceTextures>,
-    /// Distinct textures.
-    pub(crate) textures: Vec<Arc<Texture>>,
+    /// Distinct textures, with their mipmaps.
+    pub(crate) textures: Vec<Mipmapped>,
     /// Emitting primitives, punctual lights and the environment.
     pub(crate) lights: LightTable,
     /// Whether camera rays that miss everything see the environment (else black).
@@ -174,7 +173,7 @@ impl RenderScene {
     }
 
     /// The distinct textures.
-    pub fn textures(&self) -> &[Arc<Texture>] {
+    pub fn textures(&self) -> &[Mipmapped] {
         &self.textures
     }
 

@@ -1,5 +1,7 @@
-//! Textures: linear RGB texels with a sampler (wrap and filter per axis), looked up by
-//! texture coordinate, the `KHR_texture_transform` of texture coordinates, and how the render
+//! Textures: linear RGB texels with a sampler (wrap per axis, magnification and
+//! minification filters), looked up by texture coordinate; their mipmaps ([`Mipmapped`],
+//! built once per texture by flatten, box-filtered in linear space) and trilinear lookups at a
+//! level of detail; the `KHR_texture_transform` of texture coordinates, and how the render
 //! scene's materials and lights refer to textures ([`TextureRef`], [`SurfaceTextures`],
 //! [`TexturedEmission`]). Pure data and
 //! math; loaders fill them and shading reads them. Colour data (base colour, emission) is
@@ -10,6 +12,7 @@
 //! stored row), `u` runs right and `v` down. The OBJ loader flips `v` to match.
 
 use crate::math::{Rgb, Vec2};
+use std::sync::Arc;
 
 /// What happens outside `[0, 1]` along one axis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -29,6 +32,44 @@ pub enum Filter {
     Nearest,
     /// Bilinear interpolation of the four nearest texel centres.
     Linear,
+}
+
+/// The glTF sampler's `minFilter`: how texels are combined where the texture is minified
+/// (the level of detail is above 0), and whether and how mipmap levels are used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MinFilter {
+    /// The nearest texel of the full image (no mipmaps).
+    Nearest,
+    /// Bilinear in the full image (no mipmaps).
+    Linear,
+    /// The nearest texel of the nearest level.
+    NearestMipmapNearest,
+    /// Bilinear in the nearest level.
+    LinearMipmapNearest,
+    /// The nearest texel of the two nearest levels, blended.
+    NearestMipmapLinear,
+    /// Bilinear in the two nearest levels, blended (trilinear): the default.
+    LinearMipmapLinear,
+}
+
+impl MinFilter {
+    /// The filter within a level, and whether levels blend (`Some(true)`), the nearest one
+    /// is taken (`Some(false)`) or there are none (`None`).
+    fn parts(self) -> (Filter, Option<bool>) {
+        match self {
+            MinFilter::Nearest => (Filter::Nearest, None),
+            MinFilter::Linear => (Filter::Linear, None),
+            MinFilter::NearestMipmapNearest => (Filter::Nearest, Some(false)),
+            MinFilter::LinearMipmapNearest => (Filter::Linear, Some(false)),
+            MinFilter::NearestMipmapLinear => (Filter::Nearest, Some(true)),
+            MinFilter::LinearMipmapLinear => (Filter::Linear, Some(true)),
+        }
+    }
+
+    /// Whether the filter reads mipmap levels.
+    pub fn uses_mipmaps(self) -> bool {
+        self.parts().1.is_some()
+    }
 }
 
 /// How a texture's stored values map to the linear values it holds.
@@ -82,8 +123,11 @@ pub struct Texture {
     texels: Texels,
     /// Wrap modes along `u` and `v`.
     pub wrap: [Wrap; 2],
-    /// Filter used for every lookup (no mipmapping: a path tracer supersamples anyway).
+    /// The magnification filter: lookups at level of detail 0 or below, and every lookup
+    /// that has no footprint (alpha coverage, emission, light paths).
     pub filter: Filter,
+    /// The minification filter: lookups of [`Mipmapped::lookup_at`] above level 0.
+    pub min_filter: MinFilter,
 }
 
 /// The texels as stored. 8-bit images keep their bytes, decoded to linear through a table at
@@ -161,6 +205,7 @@ impl Texture {
                 },
                 wrap: [Wrap::Repeat; 2],
                 filter: Filter::Linear,
+                min_filter: MinFilter::LinearMipmapLinear,
             },
         )
     }
@@ -202,6 +247,7 @@ impl Texture {
             },
             wrap: [Wrap::Repeat; 2],
             filter: Filter::Linear,
+            min_filter: MinFilter::LinearMipmapLinear,
         })
     }
 
@@ -278,10 +324,20 @@ impl Texture {
         }
         let w = self.width as usize;
         match &self.texels {
-            Texels::Linear { alpha, .. } => self.filtered(uv, |i, j| alpha[j * w + i]),
-            Texels::Bytes { data, channels, .. } => self.filtered(uv, |i, j| {
+            Texels::Linear { alpha, .. } => self.filtered(self.filter, uv, |i, j| alpha[j * w + i]),
+            Texels::Bytes { data, channels, .. } => self.filtered(self.filter, uv, |i, j| {
                 alpha_of(data[(j * w + i) * channels + channels - 1])
             }),
+        }
+    }
+
+    /// The bytes the texels take.
+    pub fn texel_bytes(&self) -> usize {
+        match &self.texels {
+            Texels::Linear { rgb, alpha } => {
+                std::mem::size_of_val(rgb.as_slice()) + std::mem::size_of_val(alpha.as_slice())
+            }
+            Texels::Bytes { data, .. } => data.len(),
         }
     }
 
@@ -293,12 +349,18 @@ impl Texture {
     /// The filtered colour at texture coordinate `uv`.
     #[inline]
     pub fn lookup(&self, uv: Vec2) -> Rgb {
-        self.filtered(uv, |i, j| self.texel(i, j))
+        self.filtered(self.filter, uv, |i, j| self.texel(i, j))
     }
 
-    /// The value of `texel(i, j)` filtered at `uv` with the texture's sampler.
+    /// The colour at `uv` filtered with `filter` (whatever the sampler says).
     #[inline]
-    fn filtered<T>(&self, uv: Vec2, texel: impl Fn(usize, usize) -> T) -> T
+    fn lookup_with(&self, filter: Filter, uv: Vec2) -> Rgb {
+        self.filtered(filter, uv, |i, j| self.texel(i, j))
+    }
+
+    /// The value of `texel(i, j)` filtered at `uv` with `filter` and the texture's wrap modes.
+    #[inline]
+    fn filtered<T>(&self, filter: Filter, uv: Vec2, texel: impl Fn(usize, usize) -> T) -> T
     where
         T: std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
     {
@@ -308,7 +370,7 @@ impl Texture {
         if !(x.is_finite() && y.is_finite()) {
             return texel(0, 0);
         }
-        match self.filter {
+        match filter {
             Filter::Nearest => {
                 let i = wrap_index(x.floor() as i64, w, self.wrap[0]);
                 let j = wrap_index(y.floor() as i64, h, self.wrap[1]);
@@ -354,6 +416,264 @@ impl Texture {
                         decode[t[1] as usize],
                         decode[t[2] as usize],
                     ),
+                }
+            }
+        }
+    }
+
+    /// The linear colour and alpha of texel `k` (row-major).
+    #[inline]
+    fn linear_texel(&self, k: usize) -> [f32; 4] {
+        let c = self.texel_at(k);
+        let alpha = match &self.texels {
+            Texels::Linear { alpha, .. } => alpha.get(k).copied().unwrap_or(1.0),
+            Texels::Bytes { data, channels, .. } if channels.is_multiple_of(2) => {
+                alpha_of(data[k * channels + channels - 1])
+            }
+            Texels::Bytes { .. } => 1.0,
+        };
+        [c.x, c.y, c.z, alpha]
+    }
+
+    /// The next mipmap level: half the size along each axis (rounded down, at least 1),
+    /// each texel the area-weighted mean of the texels its rectangle covers, in linear values
+    /// (a box filter; with an odd size a texel is shared by two), stored as this level is
+    /// (8-bit texels re-encoded to the nearest byte in the same encoding). Works a row at a
+    /// time: no linear copy of the level is made.
+    fn downsampled(&self) -> Texture {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (w2, h2) = ((w / 2).max(1), (h / 2).max(1));
+        let mut columns = Vec::new();
+        box_weights(w, w2, |i, k, weight| columns.push((i, k, weight)));
+        let mut rows = Vec::new();
+        box_weights(h, h2, |j, k, weight| rows.push((j, k, weight)));
+        let mut writer = LevelWriter::new(&self.texels, w2 * h2);
+        let mut line = vec![[0.0f32; 4]; w2];
+        let mut next_row = 0;
+        for j in 0..h2 {
+            line.fill([0.0; 4]);
+            while let Some(&(_, k, wy)) = rows.get(next_row).filter(|r| r.0 == j) {
+                for &(i, kx, wx) in &columns {
+                    let texel = self.linear_texel(k * w + kx);
+                    for (sum, value) in line[i].iter_mut().zip(texel) {
+                        *sum += value * wx * wy;
+                    }
+                }
+                next_row += 1;
+            }
+            line.iter().for_each(|t| writer.push(t));
+        }
+        Texture {
+            width: w2 as u32,
+            height: h2 as u32,
+            texels: writer.finish(),
+            ..*self
+        }
+    }
+}
+
+/// Texels of a new level stored as those of `like` are, one linear texel at a time.
+enum LevelWriter<'a> {
+    Linear {
+        rgb: Vec<Rgb>,
+        alpha: Option<Vec<f32>>,
+    },
+    Bytes {
+        data: Vec<u8>,
+        channels: usize,
+        decode: &'a [f32; 256],
+        has_alpha: bool,
+    },
+}
+
+impl<'a> LevelWriter<'a> {
+    fn new(like: &'a Texels, texels: usize) -> Self {
+        match like {
+            Texels::Linear { alpha, .. } => LevelWriter::Linear {
+                rgb: Vec::with_capacity(texels),
+                alpha: (!alpha.is_empty()).then(|| Vec::with_capacity(texels)),
+            },
+            Texels::Bytes {
+                channels,
+                decode,
+                has_alpha,
+                ..
+            } => LevelWriter::Bytes {
+                data: Vec::with_capacity(texels * channels),
+                channels: *channels,
+                decode,
+                has_alpha: *has_alpha,
+            },
+        }
+    }
+
+    fn push(&mut self, t: &[f32; 4]) {
+        match self {
+            LevelWriter::Linear { rgb, alpha } => {
+                rgb.push(Rgb::new(t[0], t[1], t[2]));
+                if let Some(alpha) = alpha {
+                    alpha.push(t[3]);
+                }
+            }
+            LevelWriter::Bytes {
+                data,
+                channels,
+                decode,
+                ..
+            } => {
+                let colour = if *channels <= 2 { &t[..1] } else { &t[..3] };
+                data.extend(colour.iter().map(|&x| encode_byte(decode, x)));
+                if channels.is_multiple_of(2) {
+                    data.push((t[3].clamp(0.0, 1.0) * 255.0).round() as u8);
+                }
+            }
+        }
+    }
+
+    fn finish(self) -> Texels {
+        match self {
+            LevelWriter::Linear { rgb, alpha } => Texels::Linear {
+                rgb,
+                alpha: alpha.unwrap_or_default(),
+            },
+            LevelWriter::Bytes {
+                data,
+                channels,
+                decode,
+                has_alpha,
+            } => Texels::Bytes {
+                data,
+                channels,
+                decode: Box::new(*decode),
+                has_alpha,
+            },
+        }
+    }
+}
+
+/// The byte whose decoded value (by the increasing table `decode`) is nearest `x`.
+fn encode_byte(decode: &[f32; 256], x: f32) -> u8 {
+    let above = decode.partition_point(|&d| d < x).min(255);
+    if above > 0 && (x - decode[above - 1]) <= (decode[above] - x) {
+        (above - 1) as u8
+    } else {
+        above as u8
+    }
+}
+
+/// The weights of a box filter that reduces `n` texels to `m` (`m <= n`): destination texel
+/// `i` covers source texels `[i n / m, (i + 1) n / m)`, each counted by the length it
+/// overlaps; calls `add(i, k, weight)` for each overlap (weights of one `i` sum to 1).
+fn box_weights(n: usize, m: usize, mut add: impl FnMut(usize, usize, f32)) {
+    let scale = n as f64 / m as f64;
+    for i in 0..m {
+        let (start, end) = (i as f64 * scale, (i + 1) as f64 * scale);
+        let mut k = start.floor() as usize;
+        while (k as f64) < end && k < n {
+            let overlap = (end.min(k as f64 + 1.0) - start.max(k as f64)) / scale;
+            if overlap > 0.0 {
+                add(i, k, overlap as f32);
+            }
+            k += 1;
+        }
+    }
+}
+
+/// A texture with its mipmap levels, as the render scene holds it: built once per texture
+/// by flatten ([`Mipmapped::new`]) when its minification filter reads mipmaps. Level 0 is
+/// the image itself (shared with the scene that loaded it); each further level halves the
+/// size ([`Texture::downsampled`]) down to 1 x 1, adding a third to the texels' memory.
+/// Dereferences to the image, whose lookups are level 0's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mipmapped {
+    image: Arc<Texture>,
+    /// Levels 1, 2, ... (empty when the sampler reads no mipmaps).
+    levels: Vec<Texture>,
+    /// `log2(width x height) / 2`: the texture's part of the level of detail.
+    half_log2_texels: f32,
+}
+
+impl std::ops::Deref for Mipmapped {
+    type Target = Texture;
+    fn deref(&self) -> &Texture {
+        &self.image
+    }
+}
+
+impl Mipmapped {
+    /// The image with its mipmap levels if its minification filter reads them.
+    pub fn new(image: Arc<Texture>) -> Self {
+        let mut levels: Vec<Texture> = Vec::new();
+        if image.min_filter.uses_mipmaps() {
+            let mut last: &Texture = &image;
+            while last.width > 1 || last.height > 1 {
+                levels.push(last.downsampled());
+                last = levels.last().expect("just pushed");
+            }
+        }
+        let half_log2_texels = 0.5 * (image.width as f32 * image.height as f32).log2();
+        Mipmapped {
+            image,
+            levels,
+            half_log2_texels,
+        }
+    }
+
+    /// The number of levels, the image included.
+    pub fn level_count(&self) -> usize {
+        1 + self.levels.len()
+    }
+
+    /// The bytes the mipmap levels (beyond the image) take.
+    pub fn mipmap_bytes(&self) -> usize {
+        self.levels.iter().map(Texture::texel_bytes).sum()
+    }
+
+    /// Level `k` (0: the image), the last one beyond the chain.
+    fn level(&self, k: usize) -> &Texture {
+        match k {
+            0 => &self.image,
+            _ => &self.levels[(k - 1).min(self.levels.len() - 1)],
+        }
+    }
+
+    /// The level of detail of a lookup through `transform` at a hit whose footprint gives
+    /// `log2_footprint` ([`crate::ray_cone`]: log2 of the footprint's width in texture
+    /// coordinates of the mesh); negative infinity (level 0) without a footprint.
+    #[inline]
+    pub fn level_of_detail(&self, transform: &UvTransform, log2_footprint: f32) -> f32 {
+        let [r0, r1] = transform.0;
+        let det = (r0[0] * r1[1] - r0[1] * r1[0]).abs();
+        log2_footprint + self.half_log2_texels + 0.5 * det.log2()
+    }
+
+    /// The colour at `uv` for level of detail `lod` (log2 of the footprint's width in
+    /// texels): the magnification filter at level 0 where `lod <= 0` (or is not a number),
+    /// else the minification filter, across the two nearest levels (trilinear) or at the
+    /// nearest as the sampler says, clamped to the last level.
+    #[inline]
+    pub fn lookup_at(&self, uv: Vec2, lod: f32) -> Rgb {
+        if lod.is_nan() || lod <= 0.0 {
+            return self.image.lookup(uv);
+        }
+        let (filter, blend) = self.image.min_filter.parts();
+        let last = self.levels.len() as f32;
+        match blend {
+            None => self.image.lookup_with(filter, uv),
+            Some(false) => {
+                let k = (lod + 0.5).floor().min(last) as usize;
+                self.level(k).lookup_with(filter, uv)
+            }
+            Some(true) => {
+                let lod = lod.min(last);
+                let k = lod.floor();
+                let f = lod - k;
+                let k = k as usize;
+                let near = self.level(k).lookup_with(filter, uv);
+                if f > 0.0 {
+                    near * (1.0 - f) + self.level(k + 1).lookup_with(filter, uv) * f
+                } else {
+                    near
                 }
             }
         }
@@ -423,6 +743,14 @@ pub struct SurfaceTextures {
     pub specular: TextureRef,
     /// Multiplies the dielectric's `specular_color` (`KHR_materials_specular`).
     pub specular_color: TextureRef,
+    /// Red multiplies the clearcoat (`KHR_materials_clearcoat`).
+    pub clearcoat: TextureRef,
+    /// Green multiplies the clearcoat's roughness.
+    pub clearcoat_roughness: TextureRef,
+    /// Multiplies the sheen colour (`KHR_materials_sheen`).
+    pub sheen_color: TextureRef,
+    /// Alpha multiplies the sheen's roughness.
+    pub sheen_roughness: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -433,16 +761,45 @@ impl SurfaceTextures {
             || self.metallic_roughness.is_set()
             || self.normal.is_set()
             || self.specular.is_set()
-            || self.specular_color.is_set())
+            || self.specular_color.is_set()
+            || self.has_layer_textures())
+    }
+
+    /// Whether a clearcoat or sheen texture is set.
+    #[inline]
+    pub fn has_layer_textures(&self) -> bool {
+        self.clearcoat.is_set()
+            || self.clearcoat_roughness.is_set()
+            || self.sheen_color.is_set()
+            || self.sheen_roughness.is_set()
     }
 }
 
-/// The emission texture of one triangle light. Its [`crate::lights::AreaLight::radiance`] is
-/// `radiance` times the texture's mean (the power estimate that chooses lights); the radiance
-/// leaving a point is `radiance` times the texel there.
+/// The alpha coverage (MASK or BLEND) of an emitting triangle, as light sampling weighs
+/// its points: the coverage is the material's factor x the base-colour texture's alpha
+/// (level 0) x the vertex colours' alpha; a sampled point emits its radiance times the
+/// coverage (BLEND, as Cycles' mix of transparent and emission shaders) or times whether the
+/// coverage reaches the cutoff (MASK). Rays that hit the surface pass the coverage test
+/// already, so a hit sees the radiance in full.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionCoverage {
+    /// MASK (with its cutoff) or BLEND.
+    pub mode: crate::scene::AlphaMode,
+    /// The material's alpha factor.
+    pub factor: f32,
+    /// The base-colour texture, when its alpha counts (else unset).
+    pub texture: TextureRef,
+    /// The vertex colours' alpha at the triangle's vertices (1 without).
+    pub vertex_alpha: [f32; 3],
+}
+
+/// The emission texture and alpha coverage of one triangle light (either may be absent). Its
+/// [`crate::lights::AreaLight::radiance`] is `radiance` times the texture's mean (the power
+/// estimate that chooses lights); the radiance leaving a point is `radiance` times the texel
+/// there (times the coverage for a point light sampling chose: [`EmissionCoverage`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TexturedEmission {
-    /// The emissive texture.
+    /// The emissive texture (unset: none).
     pub texture: TextureRef,
     /// The emitter's radiance before the texture (`emissiveFactor` x strength).
     pub radiance: Rgb,
@@ -451,6 +808,8 @@ pub struct TexturedEmission {
     pub inverse_mean: Rgb,
     /// Texture coordinates of the triangle's vertices, in the light's vertex order.
     pub uvs: [Vec2; 3],
+    /// The alpha coverage of an emitter with alpha MASK or BLEND.
+    pub coverage: Option<EmissionCoverage>,
 }
 
 #[cfg(test)]
@@ -538,6 +897,108 @@ mod tests {
         let t = Texture::from_bytes8(2, 1, 3, vec![255, 51, 0, 0, 0, 0], Encoding::Linear).unwrap();
         assert_eq!(t.lookup(Vec2::new(0.25, 0.5)), Rgb::new(1.0, 0.2, 0.0));
         assert_eq!(t.mean(), Rgb::new(0.5, 0.1, 0.0));
+    }
+
+    fn linear_mean(t: &Texture) -> Rgb {
+        t.mean()
+    }
+
+    #[test]
+    fn mipmap_levels_halve_down_to_one_texel_and_keep_the_mean() {
+        // 5 x 3 linear texels of distinct values: levels 2 x 1 and 1 x 1, each the
+        // area-weighted box of the one before, so every level averages to the image's mean.
+        let texels: Vec<Rgb> = (0..15)
+            .map(|k| Rgb::new(k as f32, (k * k) as f32, 1.0))
+            .collect();
+        let image = Texture::new(5, 3, texels).unwrap();
+        let mipmapped = Mipmapped::new(Arc::new(image.clone()));
+        assert_eq!(mipmapped.level_count(), 3);
+        assert_eq!(mipmapped.level(1).size(), (2, 1));
+        assert_eq!(mipmapped.level(2).size(), (1, 1));
+        for k in 1..3 {
+            let error = (linear_mean(mipmapped.level(k)) - image.mean())
+                .abs()
+                .max_element();
+            assert!(
+                error < 1e-4 * image.mean().max_element(),
+                "level {k}: {error}"
+            );
+        }
+        // Texel (0, 0) of level 1 covers columns [0, 2.5) of all three rows.
+        let expected = [0, 1, 5, 6, 10, 11].iter().map(|&k| k as f32).sum::<f32>()
+            + 0.5 * [2, 7, 12].iter().map(|&k| k as f32).sum::<f32>();
+        let level1 = mipmapped.level(1).texel(0, 0).x;
+        assert!((level1 - expected / 7.5).abs() < 1e-5, "{level1}");
+        // A texture whose sampler reads no mipmaps gets none.
+        let mut plain = image;
+        plain.min_filter = MinFilter::Linear;
+        assert_eq!(Mipmapped::new(Arc::new(plain)).level_count(), 1);
+    }
+
+    #[test]
+    fn srgb_levels_average_in_linear_space() {
+        // Black and white sRGB bytes average to linear 0.5 (sRGB byte 188), not to byte 128.
+        let bytes = vec![0, 0, 0, 255, 255, 255, 255, 255, 255, 0, 0, 0];
+        let t = Texture::from_srgb8(2, 2, 3, bytes).unwrap();
+        let m = Mipmapped::new(Arc::new(t));
+        let grey = m.level(1).texel(0, 0);
+        // The nearest byte is 188 (0.5029; 187 decodes to 0.4969).
+        assert_eq!(grey, Rgb::splat(srgb_to_linear(188.0 / 255.0)), "{grey}");
+        assert!(matches!(m.level(1).texels, Texels::Bytes { .. }));
+        // Alpha is averaged as it is (linear).
+        let t = Texture::from_srgb8(2, 1, 2, vec![255, 255, 255, 51]).unwrap();
+        let m = Mipmapped::new(Arc::new(t));
+        assert_eq!(m.level(1).lookup_alpha(Vec2::splat(0.5)), 153.0 / 255.0);
+    }
+
+    #[test]
+    fn lookups_blend_levels_as_the_minification_filter_says() {
+        // An 8 x 8 checker of single texels: level 0 alternates, levels 1 up are grey 0.5.
+        let texels: Vec<Rgb> = (0..64)
+            .map(|k| Rgb::splat(((k % 8 + k / 8) % 2) as f32))
+            .collect();
+        let mut image = Texture::new(8, 8, texels).unwrap();
+        image.filter = Filter::Nearest;
+        let uv = Vec2::new(0.5 / 8.0, 0.5 / 8.0); // the centre of texel (0, 0), black
+        let grey = Rgb::splat(0.5);
+        let close = |a: Rgb, b: Rgb| (a - b).abs().max_element() < 1e-6;
+        for (filter, at_half, at_two) in [
+            (MinFilter::LinearMipmapLinear, Rgb::splat(0.25), grey),
+            (MinFilter::NearestMipmapLinear, Rgb::splat(0.25), grey),
+            (MinFilter::LinearMipmapNearest, grey, grey),
+            (MinFilter::NearestMipmapNearest, grey, grey),
+            (MinFilter::Linear, Rgb::ZERO, Rgb::ZERO),
+            (MinFilter::Nearest, Rgb::ZERO, Rgb::ZERO),
+        ] {
+            image.min_filter = filter;
+            let m = Mipmapped::new(Arc::new(image.clone()));
+            assert_eq!(
+                m.lookup_at(uv, 0.0),
+                Rgb::ZERO,
+                "{filter:?}: level 0, magnified"
+            );
+            assert_eq!(
+                m.lookup_at(uv, f32::NAN),
+                Rgb::ZERO,
+                "{filter:?}: no footprint"
+            );
+            assert!(close(m.lookup_at(uv, 0.5), at_half), "{filter:?}");
+            assert!(close(m.lookup_at(uv, 2.0), at_two), "{filter:?}");
+            assert!(close(m.lookup_at(uv, 1e9), at_two), "{filter:?}: clamped");
+        }
+    }
+
+    #[test]
+    fn the_level_of_detail_counts_texels_and_the_uv_transform() {
+        let image = Texture::new(256, 64, vec![Rgb::ONE; 256 * 64]).unwrap();
+        let m = Mipmapped::new(Arc::new(image));
+        // A footprint of 1/128 of the texture square covers sqrt(256 x 64) / 128 = 1 texel.
+        let lod = m.level_of_detail(&UvTransform::IDENTITY, -7.0);
+        assert!(lod.abs() < 1e-6, "{lod}");
+        // Scaling the coordinates by 4 makes the footprint 4 times as wide in texels.
+        let t = UvTransform::from_offset_rotation_scale([0.3, 0.1], 0.7, [4.0, 4.0]);
+        assert!((m.level_of_detail(&t, -7.0) - 2.0).abs() < 1e-5);
+        assert_eq!(m.level_of_detail(&t, f32::NEG_INFINITY), f32::NEG_INFINITY);
     }
 
     #[test]

@@ -284,6 +284,31 @@ impl Bsdf {
 
     /// The same model with the dielectric's `specular` scaled by `specular_scale` and its
     /// `specular_color` by `color_scale` (`KHR_materials_specular` textures); only
+    /// [`Bsdf::Layered`] with its clearcoat, the coat's roughness, sheen colour and sheen
+    /// roughness multiplied by these (the `KHR_materials_clearcoat` and `_sheen` textures);
+    /// other models have no layers and are returned as they are.
+    pub fn with_layers_scaled(
+        self,
+        clearcoat: f32,
+        clearcoat_roughness: f32,
+        sheen_color: Rgb,
+        sheen_roughness: f32,
+    ) -> Bsdf {
+        match self {
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                clearcoat: layered.clearcoat * clearcoat,
+                clearcoat_alpha: (layered.clearcoat_alpha
+                    * clearcoat_roughness
+                    * clearcoat_roughness)
+                    .max(microfacet::MIN_ALPHA),
+                sheen_color: layered.sheen_color * sheen_color,
+                sheen_roughness: layered.sheen_roughness * sheen_roughness,
+                ..layered
+            }),
+            other => other,
+        }
+    }
+
     /// [`Bsdf::MetallicRoughness`] and [`Bsdf::Layered`] have these parameters.
     #[inline]
     pub fn with_specular_scaled(self, specular_scale: f32, color_scale: Rgb) -> Bsdf {

@@ -1,11 +1,11 @@
 //! The camera of the render: the world's first (the earliest spawned), checked once.
 
 use crate::error::{Error, Result};
-use crate::scene::Camera;
+use crate::scene::{Camera, Projection};
 use std::path::Path;
 
 /// The world's first camera, refused if its placement is not finite or its field of view
-/// is out of range.
+/// (perspective) or film height (orthographic) is out of range.
 pub(super) fn first_camera(world: &hecs::World, path: &Path) -> Result<Camera> {
     let camera = world
         .query::<(hecs::Entity, &Camera)>()
@@ -20,7 +20,17 @@ pub(super) fn first_camera(world: &hecs::World, path: &Path) -> Result<Camera> {
             "the camera's position or orientation is not finite",
         ));
     }
-    if !(camera.vfov > 0.0 && camera.vfov < std::f32::consts::PI) {
+    if let Projection::Orthographic { half_height } = camera.projection {
+        if !(half_height > 0.0 && half_height.is_finite()) {
+            return Err(Error::input(
+                path,
+                Some("camera".into()),
+                format!(
+                    "the orthographic film's half height must be positive and finite, got {half_height}"
+                ),
+            ));
+        }
+    } else if !(camera.vfov > 0.0 && camera.vfov < std::f32::consts::PI) {
         return Err(Error::input(
             path,
             Some("camera".into()),

@@ -5,12 +5,12 @@ use super::Primitives;
 use super::materials;
 use crate::error::{Error, Result};
 use crate::lights::{AreaLight, DeltaLight, Environment, LightTable, SpotCone};
-use crate::math::{Vec3, Vec3A};
+use crate::math::{Rgb, Vec3, Vec3A};
 use crate::render_scene::NO_EMITTER;
 use crate::scene::{
     Emitter, EnvironmentLight, EnvironmentSource, Name, PunctualLight, SpotFalloff, Transform,
 };
-use crate::texture::TexturedEmission;
+use crate::texture::{EmissionCoverage, TextureRef, TexturedEmission};
 use obvhs::aabb::Aabb;
 use std::path::Path;
 
@@ -43,16 +43,32 @@ pub(super) fn scene_lights(
         };
         first_light.push(area_lights.len() as u32);
         let end = groups.get(g + 1).map_or(prims.count, |next| next.first);
+        let record = prims.alpha_records.get(group.alpha as usize);
         for prim in group.first..end {
             let mut radiance = emitter.radiance;
-            // A textured emitter is chosen by its mean radiance; shading applies the texel.
-            textured_emission.push(group.emission_texture.map(|(texture, mean)| {
-                radiance *= mean;
+            // A textured emitter is chosen by its mean radiance; shading applies the texel
+            // (and an alpha-tested one's coverage at sampled points).
+            let coverage = record.map(|r| EmissionCoverage {
+                mode: r.mode,
+                factor: r.factor,
+                texture: r.texture,
+                vertex_alpha: if r.vertex_alpha {
+                    prims.vertex_alphas(prim)
+                } else {
+                    [1.0; 3]
+                },
+            });
+            let (texture, mean) = group
+                .emission_texture
+                .unwrap_or((TextureRef::default(), Rgb::ONE));
+            radiance *= mean;
+            textured_emission.push((texture.is_set() || coverage.is_some()).then(|| {
                 TexturedEmission {
                     texture,
                     radiance: emitter.radiance,
                     inverse_mean: materials::inverse_or_zero(mean),
                     uvs: prims.uvs(prim),
+                    coverage,
                 }
             }));
             let shape = prims.shape(prim);

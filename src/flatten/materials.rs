@@ -6,7 +6,7 @@ use crate::bsdf::microfacet::alpha_from_roughness;
 use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use crate::scene::{Material, MaterialTextures, TextureSlot, Volume};
-use crate::texture::{SurfaceTextures, Texture, TextureRef};
+use crate::texture::{Mipmapped, SurfaceTextures, Texture, TextureRef};
 use std::sync::Arc;
 
 /// The render-side scattering model of a scene material; `mr_textured` says whether a
@@ -164,8 +164,35 @@ impl TextureInterner {
             normal_scale: t.normal_scale,
             specular: self.intern(t.specular.as_ref()),
             specular_color: self.intern(t.specular_color.as_ref()),
+            clearcoat: self.intern(t.clearcoat.as_ref()),
+            clearcoat_roughness: self.intern(t.clearcoat_roughness.as_ref()),
+            sheen_color: self.intern(t.sheen_color.as_ref()),
+            sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
         }
     }
+}
+
+/// The render scene's textures with their mipmaps, built here once per texture whose
+/// sampler reads them; refused with an error when the levels (a third of the texels'
+/// bytes more) would not fit in memory.
+pub(super) fn mipmapped(
+    textures: Vec<Arc<Texture>>,
+    path: &std::path::Path,
+) -> crate::Result<Vec<Mipmapped>> {
+    let levels: u64 = (textures.iter())
+        .filter(|t| t.min_filter.uses_mipmaps())
+        .map(|t| t.texel_bytes() as u64 / 3 + 1)
+        .sum();
+    crate::memory::check_fits(
+        path,
+        &format!("the mipmaps of its {} textures", textures.len()),
+        crate::memory::Needed {
+            resident: levels,
+            address_space: levels,
+        },
+        crate::memory::available(),
+    )?;
+    Ok(textures.into_iter().map(Mipmapped::new).collect())
 }
 
 /// `1 / x` per channel, 0 where `x` is 0.

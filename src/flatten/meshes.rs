@@ -90,15 +90,8 @@ pub(super) fn flatten_meshes<'w>(
             emitter = None; // a black emission texture: nothing is emitted
         }
         let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
+        // An emitter's coverage also weighs its light samples (`flatten/lights.rs`).
         let alpha = match alpha {
-            // Light sampling would still pick the cut-out parts of an emitter.
-            Some(_) if emitter.is_some() => {
-                warnings.push(format!(
-                    "mesh '{name}': alpha coverage of an emitting surface is ignored; it is \
-                     rendered opaque"
-                ));
-                alpha::OPAQUE
-            }
             Some(coverage) => {
                 let texture = textures
                     .and_then(|t| t.base_color.as_ref())

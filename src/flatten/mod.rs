@@ -210,7 +210,7 @@ pub fn flatten_with(
         transmits_or_absorbs: materials.transmits_or_absorbs(),
         material_absorption: materials.absorptions(),
         materials: materials.bsdfs(),
-        textures: materials.interner.textures,
+        textures: materials::mipmapped(materials.interner.textures, path)?,
         lights: lights.table,
         environment_visible,
         textured_emission: lights.textured_emission,
@@ -307,6 +307,14 @@ impl<'w> Primitives<'w> {
         match self.locate(prim) {
             (Source::Mesh(mesh), t) => Shape::Triangle(mesh.geometry(t)),
             (Source::Sphere(sphere), _) => Shape::Sphere(*sphere),
+        }
+    }
+
+    /// The vertex colours' alpha of primitive `prim` (1 for a sphere or without colours).
+    fn vertex_alphas(&self, prim: usize) -> [f32; 3] {
+        match self.locate(prim) {
+            (Source::Mesh(mesh), t) => mesh.colors(t).map(|c| c.w),
+            (Source::Sphere(_), _) => [1.0; 3],
         }
     }
 

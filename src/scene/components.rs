@@ -175,6 +175,15 @@ pub struct MaterialTextures {
     /// `KHR_materials_specular` `specularColorTexture`: linear colour (decoded from sRGB)
     /// that multiplies `specular_color`.
     pub specular_color: Option<TextureSlot>,
+    /// `KHR_materials_clearcoat` `clearcoatTexture`: red (linear) multiplies `clearcoat`.
+    pub clearcoat: Option<TextureSlot>,
+    /// `clearcoatRoughnessTexture`: green (linear) multiplies `clearcoat_roughness`.
+    pub clearcoat_roughness: Option<TextureSlot>,
+    /// `KHR_materials_sheen` `sheenColorTexture`: colour (decoded from sRGB) that multiplies
+    /// `sheen_color`.
+    pub sheen_color: Option<TextureSlot>,
+    /// `sheenRoughnessTexture`: alpha (linear) multiplies `sheen_roughness`.
+    pub sheen_roughness: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -186,6 +195,10 @@ impl MaterialTextures {
             && self.emissive.is_none()
             && self.specular.is_none()
             && self.specular_color.is_none()
+            && self.clearcoat.is_none()
+            && self.clearcoat_roughness.is_none()
+            && self.sheen_color.is_none()
+            && self.sheen_roughness.is_none()
     }
 }
 
@@ -315,7 +328,22 @@ pub enum EnvironmentSource {
     File(PathBuf),
 }
 
-/// A pinhole camera in world space.
+/// How a camera projects the scene onto its film.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Projection {
+    /// Rays from the eye through the film, spanning the vertical field of view `vfov`.
+    #[default]
+    Perspective,
+    /// Parallel rays along `forward` from a film through the eye, `2 half_height` world
+    /// units tall (glTF's `ymag` is the half height); its width follows the image's aspect
+    /// ratio. `vfov` is unused.
+    Orthographic {
+        /// Half the film's height, world units.
+        half_height: f32,
+    },
+}
+
+/// A camera in world space: a pinhole, or orthographic ([`Projection`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     /// Centre of projection.
@@ -328,6 +356,8 @@ pub struct Camera {
     pub vfov: f32,
     /// Width / height the camera was made for, if it dictates one.
     pub aspect_ratio: Option<f32>,
+    /// Perspective or orthographic.
+    pub projection: Projection,
 }
 
 impl Camera {
@@ -341,7 +371,13 @@ impl Camera {
             up: right.cross(forward),
             vfov,
             aspect_ratio: None,
+            projection: Projection::Perspective,
         }
+    }
+
+    /// Whether the camera is orthographic.
+    pub fn is_orthographic(&self) -> bool {
+        matches!(self.projection, Projection::Orthographic { .. })
     }
 }
 

@@ -61,6 +61,7 @@ pub fn record_first_surfaces(
     paths: &mut PathState,
     bounce: u32,
 ) {
+    let cones = &paths.cone;
     let aov = &mut paths.aov;
     if bounce == 0 {
         aov.sample.clear();
@@ -98,7 +99,17 @@ pub fn record_first_surfaces(
         let wo = -direction;
         let ns = surface::shading_normal(scene, slot, barycentric, ng);
         let material = scene.material_of(slot) as usize;
-        let (bsdf, ns) = surface::textured_surface(scene, material, slot, barycentric, ng, ns, wo);
+        let width = cones.get(i).map_or(0.0, |cone| cone.width_at(t));
+        let (bsdf, ns) = surface::textured_surface_in_cone(
+            scene,
+            material,
+            slot,
+            barycentric,
+            ng,
+            ns,
+            wo,
+            width,
+        );
         let facing = if ns.dot(wo) < 0.0 { -ns } else { ns };
         sample.normal = Rgb::from(facing);
         let emitter = scene.emitter_of(slot);

@@ -6,6 +6,7 @@ use super::aov::AovColumns;
 use crate::film::FilmRegion;
 use crate::lights::LightUniforms;
 use crate::math::{Rgb, Vec2, Vec3A};
+use crate::ray_cone::RayCone;
 use std::ops::Range;
 
 /// Rays to intersect, one per live path.
@@ -78,6 +79,8 @@ pub struct PathState {
     /// Where the path stands toward the caustics the pass's light paths also find (always
     /// [`CausticState::None`] when no light paths are traced).
     pub caustic: Vec<CausticState>,
+    /// The ray cone of the path's current ray (texture level of detail).
+    pub cone: Vec<RayCone>,
     /// Auxiliary values (albedo, normal, depth) for the denoiser and `--aov`; empty columns
     /// when the render records none.
     pub aov: AovColumns,
@@ -106,6 +109,7 @@ impl PathState {
         self.radiance_scale.resize(n, 1.0);
         self.medium.resize(n, Rgb::ZERO);
         self.caustic.resize(n, CausticState::None);
+        self.cone.resize(n, RayCone::default());
         if self.aov.is_active() {
             self.aov.resize(n);
         }
@@ -383,6 +387,7 @@ pub fn compact_paths(
         paths.radiance_scale[kept] = paths.radiance_scale[i];
         paths.medium[kept] = paths.medium[i];
         paths.caustic[kept] = paths.caustic[i];
+        paths.cone[kept] = paths.cone[i];
         next_rays.origin[kept] = next_rays.origin[i];
         next_rays.direction[kept] = next_rays.direction[i];
         kept += 1;

@@ -22,6 +22,7 @@ pub fn generate_camera_rays(
 ) {
     let is_active = |p: &u32| active.is_none_or(|a| a[*p as usize]);
     let n = pixels.clone().filter(is_active).count();
+    let cone = camera.ray_cone();
     paths.resize(n);
     rays.resize(n);
     for (i, pixel) in pixels.filter(is_active).enumerate() {
@@ -34,6 +35,7 @@ pub fn generate_camera_rays(
         paths.radiance_scale[i] = 1.0;
         paths.medium[i] = Rgb::ZERO; // cameras are outside every object
         paths.caustic[i] = CausticState::None;
+        paths.cone[i] = cone;
         let (origin, direction) =
             camera.generate_ray(pixel, sampler.uniform2(key, 0, dim::PIXEL_JITTER));
         // flatten refused non-finite cameras, so every camera ray is valid

@@ -83,7 +83,10 @@ pub fn caustics_traced(scene: &RenderScene, settings: &RenderSettings) -> bool {
             .delta_lights
             .iter()
             .any(|l| !matches!(l.kind, DeltaKind::Directional { .. }));
+    // An orthographic camera's rays share one direction: no light path can reach its film
+    // (the path tracer alone finds caustics there).
     settings.caustic_paths > 0.0
+        && !scene.camera.is_orthographic()
         && settings.mis
         && settings.max_depth >= 3
         && has_delta_surface
@@ -335,7 +338,7 @@ impl LightTracer<'_> {
             Shape::Triangle(t) => {
                 let [b1, b2] = sample_triangle([Vec4::splat(u_point.x), Vec4::splat(u_point.y)]);
                 let b = Vec2::new(b1.x, b2.x);
-                let radiance = surface::emitted_radiance(self.scene, index, b);
+                let radiance = surface::sampled_emitted_radiance(self.scene, index, b);
                 (t.point(b), t.point_error(b), light.normal, radiance)
             }
             Shape::Sphere(s) => {

@@ -72,6 +72,7 @@ fn shade_batch<const THROUGH: bool>(
             radiance_scale: &mut paths.radiance_scale[i],
             medium: &mut paths.medium[i],
             caustic: &mut paths.caustic[i],
+            cone: &mut paths.cone[i],
             next_origin: &mut next_rays.origin[i],
             next_direction: &mut next_rays.direction[i],
         };

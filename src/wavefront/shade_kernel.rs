@@ -23,6 +23,7 @@ use crate::lights::Environment;
 use crate::math::frame::Frame;
 use crate::math::rng::dim;
 use crate::math::{Rgb, Vec2, Vec3A, max_component, offset_ray_origin};
+use crate::ray_cone::RayCone;
 use crate::render_scene::{NO_EMITTER, RenderScene};
 
 /// Russian roulette never keeps a path with probability above this, so that paths through
@@ -48,6 +49,7 @@ pub(super) struct PathView<'a> {
     pub(super) radiance_scale: &'a mut f32,
     pub(super) medium: &'a mut Rgb,
     pub(super) caustic: &'a mut CausticState,
+    pub(super) cone: &'a mut RayCone,
     pub(super) next_origin: &'a mut Vec3A,
     pub(super) next_direction: &'a mut Vec3A,
 }
@@ -115,7 +117,17 @@ pub(super) fn shade_one<const THROUGH: bool>(
 
     // --- Material: textures applied; a surface that reflects nothing ends the path.
     let material = scene.material_of(slot) as usize;
-    let (bsdf, ns) = surface::textured_surface(scene, material, slot, hit.barycentric, ng, ns, wo);
+    let width = path.cone.width_at(hit.t);
+    let (bsdf, ns) = surface::textured_surface_in_cone(
+        scene,
+        material,
+        slot,
+        hit.barycentric,
+        ng,
+        ns,
+        wo,
+        width,
+    );
     if bsdf.is_black() {
         if let Bsdf::Unlit { color } = bsdf {
             // KHR_materials_unlit shows its colour to whatever ray hits it, in full (it is
@@ -222,6 +234,7 @@ pub(super) fn shade_one<const THROUGH: bool>(
     let cos_ng = [ng.dot(wi), ng.dot(wo)];
     *path.caustic = caustic_state_after(params, bounce, path, &sample, &hit, cos_ng);
     *path.throughput *= sample.weight;
+    *path.cone = path.cone.after_bounce(hit.t, sample.is_delta, sample.pdf);
     if transmitted {
         *path.radiance_scale *= bsdf.radiance_compression(wo_local, sample.wi);
         // Into the object through its front side, out of it through its back side.

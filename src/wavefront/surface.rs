@@ -1,13 +1,17 @@
 //! Texture lookups at a hit, for the shade stage: vertex colours, base colour, metallic-roughness
-//! and normal maps change the material and shading normal; emission textures change the radiance a light
+//! and normal maps change the material and shading normal, read at the mipmap level the
+//! path's ray cone gives ([`crate::ray_cone`]); emission textures change the radiance a light
 //! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
 //! render scene; nothing allocates.
 
 use crate::bsdf::Bsdf;
+use crate::geometry::Shape;
 use crate::lights::{LightPoints, LightSamples};
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
+use crate::ray_cone::log2_uv_footprint;
 use crate::render_scene::RenderScene;
-use crate::texture::{SurfaceTextures, TextureRef};
+use crate::scene::AlphaMode;
+use crate::texture::{SurfaceTextures, TextureRef, TexturedEmission};
 
 /// Value at barycentrics `b` of a triangle whose vertices hold `v`.
 #[inline]
@@ -19,10 +23,36 @@ where
     v0 * (1.0 - b.x - b.y) + v1 * b.x + v2 * b.y
 }
 
-/// The texel of `t` at the primitive's coordinates `uv`.
+/// The texel of `t` at the primitive's coordinates `uv` (level 0 of its mipmaps).
 #[inline]
 fn lookup(scene: &RenderScene, t: &TextureRef, uv: Vec2) -> Rgb {
     scene.textures[t.texture as usize].lookup(t.uv_transform.apply(uv))
+}
+
+/// The colour of `t` at the primitive's coordinates `uv`, filtered over a footprint whose
+/// width in those coordinates is `2^log2_footprint` (negative infinity: level 0).
+#[inline]
+fn lookup_filtered(scene: &RenderScene, t: &TextureRef, uv: Vec2, log2_footprint: f32) -> Rgb {
+    let texture = &scene.textures[t.texture as usize];
+    let lod = texture.level_of_detail(&t.uv_transform, log2_footprint);
+    texture.lookup_at(t.uv_transform.apply(uv), lod)
+}
+
+/// `log2` of the width, in texture coordinates, of the footprint of a ray cone `width` wide
+/// at its hit on `slot` (unit geometric normal `ng`, `wo` back along the ray); negative
+/// infinity (level 0) without a cone or on a sphere (which has no texture coordinates).
+#[inline]
+fn log2_footprint(scene: &RenderScene, slot: usize, width: f32, ng: Vec3A, wo: Vec3A) -> f32 {
+    let Shape::Triangle(triangle) = scene.shape(slot) else {
+        return f32::NEG_INFINITY;
+    };
+    if width.is_nan() || width <= 0.0 {
+        return f32::NEG_INFINITY;
+    }
+    let [a, b, c] = scene.vertex_uvs(slot);
+    let uv_area2 = (b - a).perp_dot(c - a).abs();
+    let world_area2 = triangle.e1.cross(triangle.e2).length();
+    log2_uv_footprint(width, ng.dot(wo), world_area2, uv_area2)
 }
 
 /// The shading normal at barycentrics `b` of the primitive in `slot`, whose unit geometric
@@ -44,6 +74,8 @@ pub(super) fn shading_normal(scene: &RenderScene, slot: usize, b: Vec2, ng: Vec3
 /// shading normal, normal-mapped if the material has a normal map. `ng` is the geometric
 /// normal, `ns` the interpolated shading normal (on `ng`'s side) and `wo` the direction back
 /// along the ray.
+/// Textures are read at level 0 of their mipmaps (no footprint: light paths and their
+/// vertices); [`textured_surface_in_cone`] filters them over a ray cone's footprint.
 #[inline]
 pub(super) fn textured_surface(
     scene: &RenderScene,
@@ -54,6 +86,24 @@ pub(super) fn textured_surface(
     ns: Vec3A,
     wo: Vec3A,
 ) -> (Bsdf, Vec3A) {
+    textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, 0.0)
+}
+
+/// [`textured_surface`] for a ray whose cone is `cone_width` wide at the hit
+/// ([`crate::ray_cone::RayCone::width_at`]): colour, metallic-roughness and normal textures
+/// are read at the mipmap level of the cone's footprint; alpha (specular strength) at level 0.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub(super) fn textured_surface_in_cone(
+    scene: &RenderScene,
+    material: usize,
+    slot: usize,
+    b: Vec2,
+    ng: Vec3A,
+    ns: Vec3A,
+    wo: Vec3A,
+    cone_width: f32,
+) -> (Bsdf, Vec3A) {
     let mut bsdf = scene.materials[material];
     if scene.has_vertex_colors() {
         bsdf = bsdf.tinted(interpolate(scene.vertex_colors(slot), b).truncate());
@@ -63,18 +113,22 @@ pub(super) fn textured_surface(
         return (bsdf, ns);
     }
     let uv = interpolate(scene.vertex_uvs(slot), b);
+    let footprint = log2_footprint(scene, slot, cone_width, ng, wo);
     if textures.base_color.is_set() {
-        bsdf = bsdf.tinted(lookup(scene, &textures.base_color, uv));
+        bsdf = bsdf.tinted(lookup_filtered(scene, &textures.base_color, uv, footprint));
     }
     if textures.metallic_roughness.is_set() {
-        let c = lookup(scene, &textures.metallic_roughness, uv);
+        let c = lookup_filtered(scene, &textures.metallic_roughness, uv, footprint);
         bsdf = bsdf.with_metallic_roughness_scaled(c.z, c.y);
     }
     if textures.specular.is_set() || textures.specular_color.is_set() {
-        bsdf = specular_textured(scene, textures, uv, bsdf);
+        bsdf = specular_textured(scene, textures, (uv, footprint), bsdf);
+    }
+    if textures.has_layer_textures() {
+        bsdf = layers_textured(scene, textures, (uv, footprint), bsdf);
     }
     if textures.normal.is_set() {
-        let mapped = mapped_normal(scene, textures, slot, b, uv, ng, ns, wo);
+        let mapped = mapped_normal(scene, textures, slot, b, (uv, footprint), ng, ns, wo);
         return (bsdf.with_bump_shadowing(mapped, ns), mapped);
     }
     (bsdf, ns)
@@ -86,7 +140,7 @@ pub(super) fn textured_surface(
 fn specular_textured(
     scene: &RenderScene,
     textures: &SurfaceTextures,
-    uv: Vec2,
+    (uv, footprint): (Vec2, f32),
     bsdf: Bsdf,
 ) -> Bsdf {
     let strength = if textures.specular.is_set() {
@@ -96,11 +150,43 @@ fn specular_textured(
         1.0
     };
     let colour = if textures.specular_color.is_set() {
-        lookup(scene, &textures.specular_color, uv)
+        lookup_filtered(scene, &textures.specular_color, uv, footprint)
     } else {
         Rgb::ONE
     };
     bsdf.with_specular_scaled(strength, colour)
+}
+
+/// `bsdf` with its clearcoat and sheen scaled by the `KHR_materials_clearcoat` and `_sheen`
+/// textures: clearcoat by the red of `clearcoatTexture`, its roughness by the green of
+/// `clearcoatRoughnessTexture`, the sheen colour by `sheenColorTexture`, its roughness by
+/// the alpha of `sheenRoughnessTexture` (level 0, as every alpha).
+#[inline(never)]
+fn layers_textured(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    (uv, footprint): (Vec2, f32),
+    bsdf: Bsdf,
+) -> Bsdf {
+    let colour = |t: &TextureRef| {
+        if t.is_set() {
+            lookup_filtered(scene, t, uv, footprint)
+        } else {
+            Rgb::ONE
+        }
+    };
+    let sheen_roughness = if textures.sheen_roughness.is_set() {
+        let t = &textures.sheen_roughness;
+        scene.textures[t.texture as usize].lookup_alpha(t.uv_transform.apply(uv))
+    } else {
+        1.0
+    };
+    bsdf.with_layers_scaled(
+        colour(&textures.clearcoat).x,
+        colour(&textures.clearcoat_roughness).y,
+        colour(&textures.sheen_color),
+        sheen_roughness,
+    )
 }
 
 /// The shading normal from a tangent-space normal map. The tangent is made orthogonal to
@@ -116,7 +202,7 @@ fn mapped_normal(
     textures: &SurfaceTextures,
     slot: usize,
     b: Vec2,
-    uv: Vec2,
+    (uv, footprint): (Vec2, f32),
     ng: Vec3A,
     ns: Vec3A,
     wo: Vec3A,
@@ -130,7 +216,7 @@ fn mapped_normal(
     }
     let handedness = if tangents[0].w < 0.0 { -1.0 } else { 1.0 };
     let bitangent = ns.cross(tangent) * handedness;
-    let c = lookup(scene, &textures.normal, uv);
+    let c = lookup_filtered(scene, &textures.normal, uv, footprint);
     let s = textures.normal_scale;
     let m = Vec3A::new(
         (2.0 * c.x - 1.0) * s,
@@ -146,20 +232,60 @@ fn mapped_normal(
     }
 }
 
-/// Radiance leaving area light `light` at barycentrics `b` of its triangle: its texel times
-/// its factor if it has an emission texture, else its constant radiance.
+/// Radiance leaving area light `light` at barycentrics `b` of its triangle where a ray hit
+/// it: its texel times its factor if it has an emission texture, else its constant radiance.
+/// (A ray that hits an alpha-tested emitter has passed its coverage test: no coverage here.)
 #[inline]
 pub(super) fn emitted_radiance(scene: &RenderScene, light: u32, b: Vec2) -> Rgb {
     match scene.textured_emission.get(light as usize) {
-        Some(Some(e)) => e.radiance * lookup(scene, &e.texture, interpolate(e.uvs, b)),
+        Some(Some(e)) => e.radiance * emission_texel(scene, e, b),
         _ => scene.lights.lights[light as usize].radiance,
+    }
+}
+
+/// Radiance leaving area light `light` at barycentrics `b` of its triangle where light
+/// sampling chose the point (a light path's start): [`emitted_radiance`] times the
+/// emitter's alpha coverage there ([`EmissionCoverage`]).
+#[inline]
+pub(super) fn sampled_emitted_radiance(scene: &RenderScene, light: u32, b: Vec2) -> Rgb {
+    match scene.textured_emission.get(light as usize) {
+        Some(Some(e)) => e.radiance * emission_texel(scene, e, b) * emission_coverage(scene, e, b),
+        _ => scene.lights.lights[light as usize].radiance,
+    }
+}
+
+/// The emission texel of `e` at barycentrics `b` (1 without an emission texture).
+#[inline]
+fn emission_texel(scene: &RenderScene, e: &TexturedEmission, b: Vec2) -> Rgb {
+    if e.texture.is_set() {
+        lookup(scene, &e.texture, interpolate(e.uvs, b))
+    } else {
+        Rgb::ONE
+    }
+}
+
+/// The weight of a sampled point at barycentrics `b` of the emitter of `e` for its alpha
+/// coverage: the coverage (BLEND) or whether it reaches the cutoff (MASK); 1 when opaque.
+#[inline]
+fn emission_coverage(scene: &RenderScene, e: &TexturedEmission, b: Vec2) -> f32 {
+    let Some(c) = &e.coverage else {
+        return 1.0;
+    };
+    let mut alpha = c.factor * interpolate(c.vertex_alpha, b);
+    if c.texture.is_set() {
+        let uv = c.texture.uv_transform.apply(interpolate(e.uvs, b));
+        alpha *= scene.textures[c.texture.texture as usize].lookup_alpha(uv);
+    }
+    match c.mode {
+        AlphaMode::Blend => alpha.clamp(0.0, 1.0),
+        AlphaMode::Mask { cutoff } => f32::from(u8::from(alpha >= cutoff)),
     }
 }
 
 /// Rescales the radiance of each lane of `samples` that chose a light with an emission
 /// texture by texel / mean at the sampled point: the table chose and weighted the light as if
 /// it emitted its mean radiance everywhere (the density is unchanged: the estimate stays
-/// unbiased).
+/// unbiased); and by the coverage there for an alpha-tested emitter.
 #[inline]
 pub(super) fn texture_light_samples(
     scene: &RenderScene,
@@ -184,8 +310,8 @@ fn textured_radiance(scene: &RenderScene, radiance: [Vec4; 3], points: LightPoin
     let mut by_channel = radiance.map(|c| c.to_array());
     for (k, light) in area_light.into_iter().enumerate() {
         if let Some(Some(e)) = scene.textured_emission.get(light as usize) {
-            let uv = interpolate(e.uvs, Vec2::new(barycentric[0][k], barycentric[1][k]));
-            let texel = lookup(scene, &e.texture, uv);
+            let b = Vec2::new(barycentric[0][k], barycentric[1][k]);
+            let texel = emission_texel(scene, e, b) * emission_coverage(scene, e, b);
             let lane = Rgb::new(by_channel[0][k], by_channel[1][k], by_channel[2][k]);
             let textured = lane * e.inverse_mean * texel;
             for (channel, value) in by_channel.iter_mut().zip(textured.to_array()) {
@@ -289,6 +415,56 @@ mod tests {
             "alpha {alpha}, roughness {}",
             alpha.sqrt()
         );
+    }
+
+    #[test]
+    fn clearcoat_and_sheen_textures_scale_their_factors_by_their_channels() {
+        let dir = tempfile::tempdir().unwrap();
+        // Clearcoat 1 (roughness 1) and white sheen (roughness 1); one RGBA texture of
+        // (128, 64, 188, 51) serves every slot: clearcoat takes red (linear 0.502), its
+        // roughness green (0.251), the sheen colour sRGB (0.2158, 0.0513, 0.5029), the sheen
+        // roughness alpha (0.2).
+        let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "extensions": {
+                "KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                    "clearcoatRoughnessFactor": 1.0, "clearcoatTexture": {"index": 0},
+                    "clearcoatRoughnessTexture": {"index": 0}},
+                "KHR_materials_sheen": {"sheenColorFactor": [1.0, 1.0, 1.0],
+                    "sheenRoughnessFactor": 1.0, "sheenColorTexture": {"index": 0},
+                    "sheenRoughnessTexture": {"index": 0}}}}"#;
+        let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 64, 188, 51]));
+        let path = textured_quad(dir.path(), material, &[texel]);
+        let loaded = crate::load_scene(&path).unwrap();
+        assert!(
+            !loaded
+                .warnings
+                .iter()
+                .any(|w| w.contains("sheen") || w.contains("clearcoat")),
+            "{:?}",
+            loaded.warnings
+        );
+        let scene = crate::flatten(&loaded.world, &path).unwrap();
+        let slot = (scene.material.iter())
+            .position(|&m| scene.material_textures[m as usize].has_layer_textures())
+            .expect("the quad's material reads the layer textures");
+        let material = scene.material[slot] as usize;
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let Bsdf::Layered(layered) = bsdf else {
+            panic!("{bsdf:?}")
+        };
+        let (red, green) = (128.0f32 / 255.0, 64.0f32 / 255.0);
+        assert!((layered.clearcoat - red).abs() < 1e-6, "{layered:?}");
+        assert!(
+            (layered.clearcoat_alpha - green * green).abs() < 1e-6,
+            "{layered:?}"
+        );
+        let expected = Rgb::new(0.2158605, 0.0512695, 0.5028865);
+        assert!(
+            (layered.sheen_color - expected).abs().max_element() < 1e-4,
+            "{layered:?}"
+        );
+        assert!((layered.sheen_roughness - 0.2).abs() < 1e-6, "{layered:?}");
     }
 
     #[test]

@@ -529,6 +529,7 @@ pub(super) fn ensure_camera(world: &mut hecs::World, path: &Path) -> Result<()> 
             up: right.cross(forward),
             vfov,
             aspect_ratio: None,
+            projection: crate::scene::Projection::Perspective,
         },
     ));
     Ok(())

@@ -233,22 +233,6 @@ pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<
             .count(),
         "primitive",
     );
-    warn_count(
-        path,
-        warnings,
-        "minification filters are ignored: textures are sampled bilinearly without mipmaps",
-        document
-            .samplers()
-            .filter(|s| {
-                use gltf::texture::MinFilter as F;
-                matches!(
-                    s.min_filter(),
-                    Some(F::Nearest | F::NearestMipmapNearest | F::NearestMipmapLinear)
-                )
-            })
-            .count(),
-        "sampler",
-    );
     let file = path.display();
     for name in document.extensions_used() {
         if !SUPPORTED_REQUIRED.contains(&name)
@@ -291,24 +275,9 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
             .count()
     };
     count(
-        "KHR_materials_clearcoat textures (clearcoatTexture, clearcoatRoughnessTexture, \
-         clearcoatNormalTexture) are ignored: the factors apply everywhere",
-        with_keys(
-            "KHR_materials_clearcoat",
-            &[
-                "clearcoatTexture",
-                "clearcoatRoughnessTexture",
-                "clearcoatNormalTexture",
-            ],
-        ),
-    );
-    count(
-        "KHR_materials_sheen textures (sheenColorTexture, sheenRoughnessTexture) are ignored: \
-         the factors apply everywhere",
-        with_keys(
-            "KHR_materials_sheen",
-            &["sheenColorTexture", "sheenRoughnessTexture"],
-        ),
+        "KHR_materials_clearcoat clearcoatNormalTexture is ignored: the coat takes the \
+         base's shading normal",
+        with_keys("KHR_materials_clearcoat", &["clearcoatNormalTexture"]),
     );
     count(
         "KHR_materials_clearcoat does not darken emission (the specification scales it by \

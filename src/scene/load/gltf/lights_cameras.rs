@@ -1,12 +1,13 @@
-//! A glTF node's camera and `KHR_lights_punctual` light as entities: a perspective camera
-//! becomes a [`Camera`] in world space (an orthographic one is skipped with a warning), a
+//! A glTF node's camera and `KHR_lights_punctual` light as entities: a perspective or
+//! orthographic camera becomes a [`Camera`] in world space (an orthographic one without a
+//! usable magnification is skipped with a warning), a
 //! light a [`PunctualLight`] at the node, in the file's own numbers (`LightUnits` scales them
 //! afterwards, in `scene/load/model.rs`).
 
 use super::check::{check_perspective, node_location};
 use crate::error::{Error, Result};
 use crate::math::{Affine3A, Rgb, Vec3};
-use crate::scene::{Camera, Name, PunctualLight, SpotFalloff, Transform};
+use crate::scene::{Camera, Name, Projection, PunctualLight, SpotFalloff, Transform};
 use gltf::khr_lights_punctual::Kind as LightKind;
 use std::path::Path;
 
@@ -31,13 +32,61 @@ pub(super) fn spawn_camera(
                 camera_of(&world_from_node, &p),
             ))))
         }
-        gltf::camera::Projection::Orthographic(_) => {
-            warnings.push(format!(
-                "camera '{name}': orthographic cameras are not supported; skipped"
-            ));
-            Ok(None)
+        gltf::camera::Projection::Orthographic(o) => {
+            let Some(lens) = orthographic_lens(o.xmag(), o.ymag(), path, name, warnings) else {
+                return Ok(None);
+            };
+            let camera = camera_at(&world_from_node, &lens);
+            Ok(Some(world.spawn((Name(name.to_string()), camera))))
         }
     }
+}
+
+/// The lens of a glTF orthographic camera from its half width `xmag` and half height
+/// `ymag`: the film `2 |ymag|` tall, the aspect ratio `|xmag / ymag|`. The specification
+/// forbids zero and advises against negative values: a negative one is taken by its size, a
+/// zero or non-finite one replaced by the other (a square film), each with a warning naming
+/// the file and camera; with neither usable, `None` (the camera is skipped with a warning).
+fn orthographic_lens(
+    xmag: f32,
+    ymag: f32,
+    path: &Path,
+    name: &str,
+    warnings: &mut Vec<String>,
+) -> Option<Camera> {
+    let usable = |m: f32| (m.is_finite() && m != 0.0).then_some(m.abs());
+    let mut warn = |what: &str| {
+        warnings.push(format!(
+            "{}: orthographic camera '{name}' (xmag {xmag}, ymag {ymag}): {what}",
+            path.display()
+        ))
+    };
+    let (x, y) = match (usable(xmag), usable(ymag)) {
+        (None, None) => {
+            warn("no usable magnification; skipped");
+            return None;
+        }
+        (Some(x), None) => {
+            warn("ymag is zero or not finite; xmag used for both (a square film)");
+            (x, x)
+        }
+        (None, Some(y)) => {
+            warn("xmag is zero or not finite; ymag used for both (a square film)");
+            (y, y)
+        }
+        (Some(x), Some(y)) => (x, y),
+    };
+    if xmag < 0.0 || ymag < 0.0 {
+        warn("a negative magnification is taken by its size");
+    }
+    Some(Camera {
+        eye: Vec3::ZERO,
+        forward: Vec3::NEG_Z,
+        up: Vec3::Y,
+        vfov: 0.0,
+        aspect_ratio: Some(x / y),
+        projection: Projection::Orthographic { half_height: y },
+    })
 }
 
 /// A glTF camera (looking down its node's -Z with +Y up) in world space.
@@ -48,6 +97,7 @@ fn camera_of(world_from_node: &Affine3A, p: &gltf::camera::Perspective) -> Camer
         up: Vec3::Y,
         vfov: p.yfov(),
         aspect_ratio: p.aspect_ratio(),
+        projection: Projection::Perspective,
     };
     camera_at(world_from_node, &lens)
 }

@@ -7,7 +7,8 @@
 //! `textures.rs`) read through one UV set.
 
 use super::textures::{
-    TextureTable, info_slot, raw_uv_transform, spec_gloss_diffuse_texture, texture_slot,
+    TextureTable, info_slot, layer_texture_infos, raw_info_slot, raw_uv_transform,
+    spec_gloss_diffuse_texture, texture_slot,
 };
 use crate::math::Rgb;
 use crate::scene::{AlphaCoverage, AlphaMode, Emitter, Material, MaterialTextures, Volume};
@@ -250,6 +251,7 @@ fn material_textures(
     let pbr = m.pbr_metallic_roughness();
     let normal = m.normal_texture();
     let specular = m.specular();
+    let [clearcoat, clearcoat_roughness, sheen_color, sheen_roughness] = layer_texture_infos(m);
     let (base_color_slot, metallic_roughness_slot) = match spec_gloss {
         // The diffuse texture stands for the base colour; the specular-glossiness texture
         // has no metallic-roughness equivalent texel by texel (warned once per file).
@@ -288,6 +290,10 @@ fn material_textures(
         specular
             .as_ref()
             .and_then(|s| info_slot(textures, s.specular_color_texture(), Encoding::Srgb)),
+        raw_info_slot(textures, clearcoat.0, clearcoat.1),
+        raw_info_slot(textures, clearcoat_roughness.0, clearcoat_roughness.1),
+        raw_info_slot(textures, sheen_color.0, sheen_color.1),
+        raw_info_slot(textures, sheen_roughness.0, sheen_roughness.1),
     ];
     let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
     let [
@@ -297,6 +303,10 @@ fn material_textures(
         emissive,
         specular_map,
         specular_color_map,
+        clearcoat_map,
+        clearcoat_roughness_map,
+        sheen_color_map,
+        sheen_roughness_map,
     ] = slots.map(|slot| {
         let (slot, set) = slot?;
         if Some(set) != uv_set {
@@ -317,6 +327,10 @@ fn material_textures(
         emissive,
         specular: specular_map,
         specular_color: specular_color_map,
+        clearcoat: clearcoat_map,
+        clearcoat_roughness: clearcoat_roughness_map,
+        sheen_color: sheen_color_map,
+        sheen_roughness: sheen_roughness_map,
     };
     (textures, uv_set)
 }

@@ -8,7 +8,7 @@
 
 use crate::math::Rgb;
 use crate::scene::TextureSlot;
-use crate::texture::{Encoding, Filter, Texture, UvTransform, Wrap};
+use crate::texture::{Encoding, Filter, MinFilter, Texture, UvTransform, Wrap};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -44,6 +44,11 @@ fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
         }
         if let Some(index) = spec_gloss_diffuse_texture(&m) {
             uses.push((index, Encoding::Srgb));
+        }
+        for (info, encoding) in layer_texture_infos(&m) {
+            if let Some(index) = info.and_then(|i| i["index"].as_u64()) {
+                uses.push((index as usize, encoding));
+            }
         }
     }
     uses.retain(|&(i, _)| i < document.textures().len());
@@ -216,9 +221,24 @@ pub(super) fn import_textures(
             Some(gltf::texture::MagFilter::Nearest) => Filter::Nearest,
             _ => Filter::Linear,
         };
+        decoded.min_filter = min_filter(sampler.min_filter());
         out.insert((index, encoding), Arc::new(decoded));
     }
     out
+}
+
+/// The sampler's `minFilter` (trilinear when the file does not say: what Cycles and
+/// Blender's importer do with mipmapped textures).
+fn min_filter(filter: Option<gltf::texture::MinFilter>) -> MinFilter {
+    use gltf::texture::MinFilter as F;
+    match filter {
+        Some(F::Nearest) => MinFilter::Nearest,
+        Some(F::Linear) => MinFilter::Linear,
+        Some(F::NearestMipmapNearest) => MinFilter::NearestMipmapNearest,
+        Some(F::LinearMipmapNearest) => MinFilter::LinearMipmapNearest,
+        Some(F::NearestMipmapLinear) => MinFilter::NearestMipmapLinear,
+        Some(F::LinearMipmapLinear) | None => MinFilter::LinearMipmapLinear,
+    }
 }
 
 /// A texture reference's slot and UV set (`KHR_texture_transform` may override the set).
@@ -273,6 +293,49 @@ pub(super) fn raw_uv_transform(t: &gltf::json::Value) -> (UvTransform, Option<u3
         UvTransform::from_offset_rotation_scale(pair("offset", 0.0), rotation, pair("scale", 1.0)),
         t["texCoord"].as_u64().map(|c| c as u32),
     )
+}
+
+/// The textures of `KHR_materials_clearcoat` and `_sheen` a material names (raw JSON: the
+/// `gltf` crate reads neither extension), with the encodings of their uses: clearcoat (red,
+/// linear), clearcoat roughness (green, linear), sheen colour (sRGB), sheen roughness (alpha).
+pub(super) fn layer_texture_infos<'m>(
+    m: &'m gltf::Material,
+) -> [(Option<&'m gltf::json::Value>, Encoding); 4] {
+    let info = |extension: &str, key: &str| m.extension_value(extension).and_then(|e| e.get(key));
+    [
+        (
+            info("KHR_materials_clearcoat", "clearcoatTexture"),
+            Encoding::Linear,
+        ),
+        (
+            info("KHR_materials_clearcoat", "clearcoatRoughnessTexture"),
+            Encoding::Linear,
+        ),
+        (
+            info("KHR_materials_sheen", "sheenColorTexture"),
+            Encoding::Srgb,
+        ),
+        (
+            info("KHR_materials_sheen", "sheenRoughnessTexture"),
+            Encoding::Linear,
+        ),
+    ]
+}
+
+/// [`texture_slot`] for a texture info read from raw JSON (`index`, `texCoord`,
+/// `KHR_texture_transform`).
+pub(super) fn raw_info_slot(
+    textures: &TextureTable,
+    info: Option<&gltf::json::Value>,
+    encoding: Encoding,
+) -> Option<(TextureSlot, u32)> {
+    let info = info?;
+    let index = info["index"].as_u64()? as usize;
+    let tex_coord = info["texCoord"].as_u64().unwrap_or(0) as u32;
+    let transform = info["extensions"]
+        .get("KHR_texture_transform")
+        .map(raw_uv_transform);
+    texture_slot(textures, index, encoding, tex_coord, transform)
 }
 
 /// The texture index of a `KHR_materials_pbrSpecularGlossiness` diffuse texture.
