@@ -109,6 +109,7 @@ fn main() -> anyhow::Result<()> {
         adaptive: args.noise_threshold.map(|noise_threshold| Adaptive {
             noise_threshold,
             min_spp: args.min_spp,
+            denoised: None,
         }),
         shadow_rays: args.shadow_rays.unwrap_or(defaults.shadow_rays),
         mis: !args.no_mis,

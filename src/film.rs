@@ -101,6 +101,12 @@ impl Film {
         }
     }
 
+    /// Whether pixel `i`'s samples saw light directly or through mirrors and glass (the part
+    /// of the colour the denoiser leaves alone); false on a film without auxiliary layers.
+    pub fn sees_light(&self, i: usize) -> bool {
+        self.aov_sum.get(i).is_some_and(|s| s.emission != [0.0; 3])
+    }
+
     /// Whether the film keeps the auxiliary layers.
     pub fn has_aovs(&self) -> bool {
         !self.aov_sum.is_empty()

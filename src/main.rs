@@ -22,7 +22,8 @@ use wavetrace::scene::load::{
 };
 use wavetrace::scene::{AnimationChoice, EnvironmentSource};
 use wavetrace::settings::{
-    Adaptive, DENOISED_MAX_SPP, DENOISED_NOISE_THRESHOLD, MAX_IMAGE_SIDE, MAX_SHADOW_RAYS,
+    Adaptive, DENOISED_LIGHT_MAX_SPP, DENOISED_MAX_SPP, DENOISED_NOISE_THRESHOLD, DenoisedStop,
+    MAX_IMAGE_SIDE, MAX_SHADOW_RAYS,
 };
 use wavetrace::{
     Film, Flow, RenderOverrides, RenderSettings, RenderStats, Scene, flatten, render, render_rows,
@@ -531,9 +532,13 @@ fn tune_for_denoiser(args: &RenderArgs, scene_spp: Option<u32>, settings: &mut R
     if let Some(adaptive) = &mut settings.adaptive {
         *adaptive = Adaptive {
             noise_threshold: DENOISED_NOISE_THRESHOLD,
+            denoised: Some(DenoisedStop {
+                light_threshold: adaptive.noise_threshold,
+                unlit_max_spp: DENOISED_MAX_SPP,
+            }),
             ..*adaptive
         };
-        settings.spp = DENOISED_MAX_SPP;
+        settings.spp = DENOISED_LIGHT_MAX_SPP;
     }
 }
 

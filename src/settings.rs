@@ -67,6 +67,10 @@ pub const DENOISED_NOISE_THRESHOLD: f32 = 0.25;
 /// threshold by then (caustics seen after a diffuse bounce) gains little from more samples
 /// once denoised (docs/denoising.md).
 pub const DENOISED_MAX_SPP: u32 = 64;
+/// Most samples per pixel of a tile that sees a light (directly or through mirrors and glass)
+/// in a default render that is denoised: that light is left out of the denoiser, so its
+/// tiles keep the undenoised threshold, up to this (docs/denoising.md).
+pub const DENOISED_LIGHT_MAX_SPP: u32 = 256;
 
 /// Adaptive sampling: tiles of pixels stop taking samples once their error estimate is below
 /// the threshold; the others go on, up to [`RenderSettings::spp`].
@@ -76,6 +80,20 @@ pub struct Adaptive {
     pub noise_threshold: f32,
     /// Samples every pixel takes before its tile may stop.
     pub min_spp: u32,
+    /// A render that is denoised: how its tiles stop (`None`: all by the rule above).
+    pub denoised: Option<DenoisedStop>,
+}
+
+/// How the tiles of a denoised render stop. The denoiser takes the noise of every tile but the
+/// light seen directly or through mirrors and glass (`film::Layer::Emission`), which it leaves
+/// alone: a tile with such a pixel stops by `light_threshold` (up to the render's sample
+/// count), the others by the adaptive threshold or at `unlit_max_spp`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DenoisedStop {
+    /// The threshold of the tiles that see a light.
+    pub light_threshold: f32,
+    /// Most samples per pixel of the tiles that see none.
+    pub unlit_max_spp: u32,
 }
 
 impl Default for Adaptive {
@@ -83,6 +101,7 @@ impl Default for Adaptive {
         Adaptive {
             noise_threshold: DEFAULT_NOISE_THRESHOLD,
             min_spp: DEFAULT_MIN_SPP,
+            denoised: None,
         }
     }
 }
@@ -268,6 +287,7 @@ impl RenderSettings {
             threshold => Some(Adaptive {
                 noise_threshold: threshold.unwrap_or(DEFAULT_NOISE_THRESHOLD),
                 min_spp: overrides.min_spp.unwrap_or(DEFAULT_MIN_SPP),
+                denoised: None,
             }),
         };
         let spp = match (fixed_spp, adaptive) {
@@ -500,6 +520,7 @@ mod tests {
             adaptive: Some(Adaptive {
                 noise_threshold: -1.0,
                 min_spp: 1,
+                denoised: None,
             }),
             ..RenderSettings::default()
         };

@@ -337,7 +337,14 @@ impl ActiveTiles {
                 ys.clone()
                     .flat_map(move |y| xs.clone().map(move |x| (y * width + x) as usize))
             };
-            if pixels().all(|p| film.pixel_error(p) < threshold) {
+            // A denoised render: the tiles that see a light keep the undenoised threshold
+            // for it; the others stop at the denoiser's cap too.
+            let (limit, at_cap) = match self.adaptive.denoised {
+                Some(rule) if pixels().any(|p| film.sees_light(p)) => (rule.light_threshold, false),
+                Some(rule) => (threshold, passes_done >= rule.unlit_max_spp),
+                None => (threshold, false),
+            };
+            if at_cap || pixels().all(|p| film.pixel_error(p) < limit) {
                 *active = false;
                 for p in pixels() {
                     self.pixel_active[p] = false;

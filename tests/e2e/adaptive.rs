@@ -10,6 +10,7 @@ fn adaptive(noise_threshold: f32, min_spp: u32) -> Option<Adaptive> {
     Some(Adaptive {
         noise_threshold,
         min_spp,
+        denoised: None,
     })
 }
 

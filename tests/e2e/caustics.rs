@@ -372,6 +372,7 @@ fn light_paths_do_not_depend_on_threads_or_batches() {
         adaptive: Some(wavetrace::settings::Adaptive {
             noise_threshold: 0.5,
             min_spp: 2,
+            denoised: None,
         }),
         ..base
     };

@@ -187,6 +187,7 @@ fn filtered_images_do_not_depend_on_threads_or_batches() {
         adaptive: Some(Adaptive {
             noise_threshold: 0.5,
             min_spp: 2,
+            denoised: None,
         }),
         sampler: wavetrace::math::rng::Sampler::Sobol,
         ..base
