@@ -42,11 +42,9 @@
 //! Determinism: the grid holds the vertices in path order within each cell, and a merge adds
 //! them in that order; nothing depends on the thread count.
 
-use super::light_vertices::LightVertex;
+use super::light_vertices::{CameraVertex, LightVertex};
 use super::mis::{light_tracer_weight, merge_vertex_factor, mis_ratio};
-use crate::bsdf::Bsdf;
 use crate::camera::PinholeCamera;
-use crate::math::frame::Frame;
 use crate::math::{Rgb, Vec2, Vec3A};
 use crate::render_scene::{RenderScene, TraversalStack};
 use std::f32::consts::PI;
@@ -205,28 +203,16 @@ pub struct Merging<'a> {
     pub light_paths: u64,
 }
 
-/// A camera vertex reached through a delta bounce, as a merge needs it.
-pub(super) struct MergePoint {
-    pub(super) p: Vec3A,
-    pub(super) ng: Vec3A,
-    /// Whether the path arrived on the side `ng` points to.
-    pub(super) front: bool,
-    pub(super) frame: Frame,
-    pub(super) bsdf: Bsdf,
-    pub(super) wo_local: Vec3A,
-    /// The vertex's bounce (at least 1).
-    pub(super) bounce: u32,
-}
-
-/// The radiance the pass's light vertices near `at` send toward the camera path, with each
-/// one's MIS weight against the path tracer (to be multiplied by the path's throughput).
+/// The radiance the pass's light vertices near `at` (a camera vertex reached through a delta
+/// bounce, at bounce 1 or later) send along the camera path, its throughput included, with
+/// each one's MIS weight against the path tracer.
 /// `max_depth` is the path tracer's cap: light vertices whose paths it could not trace are
 /// left out, so both strategies cover the same paths.
 #[inline(never)]
 pub(super) fn merge(
     scene: &RenderScene,
     merging: &Merging,
-    at: &MergePoint,
+    at: &CameraVertex,
     max_depth: u32,
 ) -> Rgb {
     let radius = merging.grid.radius();
@@ -263,7 +249,7 @@ pub(super) fn merge(
         };
         sum += f * vertex.throughput * (wi_local.z.abs() / cos_ng * weight);
     });
-    let value = sum / (light_paths * PI * radius_squared);
+    let value = at.throughput * sum / (light_paths * PI * radius_squared);
     if value.is_finite() { value } else { Rgb::ZERO }
 }
 

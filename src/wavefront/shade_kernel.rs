@@ -6,7 +6,7 @@
 use super::batch::{CausticState, NO_HIT, ShadowSlots};
 use super::light_vertices::{self, CameraVertex};
 use super::medium::{material_absorption, transmittance};
-use super::merging::{self, MergePoint};
+use super::merging;
 use super::mis::{
     camera_vertex_factor, emission_weight, environment_weight, merge_vertex_factor,
     path_tracer_weight,
@@ -205,16 +205,8 @@ pub(super) fn shade_one<const THROUGH: bool>(
         && *path.bsdf_pdf == 0.0
         && !bsdf.is_delta()
     {
-        let at = MergePoint {
-            p,
-            ng,
-            front,
-            frame,
-            bsdf,
-            wo_local,
-            bounce,
-        };
-        *path.radiance += *path.throughput * merging::merge(scene, merging, &at, params.max_depth);
+        let at = camera_vertex(&at(), *path.throughput, bounce);
+        *path.radiance += merging::merge(scene, merging, &at, params.max_depth);
     }
 
     // --- BSDF sampling for the next ray.
@@ -330,16 +322,7 @@ fn connect_light_vertex<const THROUGH: bool>(
     };
     let slots = caustics.light_path_count;
     let pick = params.sampler.index(key, bounce, dim::LIGHT_VERTEX, slots) as usize;
-    let camera_vertex = CameraVertex {
-        p: at.p,
-        ng: at.ng,
-        front: at.front,
-        frame: at.frame,
-        bsdf: at.bsdf,
-        wo_local: at.wo_local,
-        throughput,
-        bounce,
-    };
+    let camera_vertex = camera_vertex(at, throughput, bounce);
     let vertices = caustics.light_vertices;
     let Some(connection) =
         light_vertices::connect(scene, vertices, pick, &camera_vertex, params.max_depth)
@@ -371,6 +354,22 @@ fn connect_light_vertex<const THROUGH: bool>(
         shadow.push_back(direction, t_max, contribution);
     } else {
         shadow.push_front(direction, t_max, contribution);
+    }
+}
+
+/// The shading point `at`, reached with `throughput` at `bounce`, as a connection or a merge
+/// needs it.
+#[inline(always)]
+fn camera_vertex(at: &ShadingPoint, throughput: Rgb, bounce: u32) -> CameraVertex {
+    CameraVertex {
+        p: at.p,
+        ng: at.ng,
+        front: at.front,
+        frame: at.frame,
+        bsdf: at.bsdf,
+        wo_local: at.wo_local,
+        throughput,
+        bounce,
     }
 }
 
