@@ -282,11 +282,9 @@ impl Bsdf {
         }
     }
 
-    /// The same model with the dielectric's `specular` scaled by `specular_scale` and its
-    /// `specular_color` by `color_scale` (`KHR_materials_specular` textures); only
-    /// [`Bsdf::Layered`] with its clearcoat, the coat's roughness, sheen colour and sheen
+    /// The same model with its clearcoat, the coat's roughness, sheen colour and sheen
     /// roughness multiplied by these (the `KHR_materials_clearcoat` and `_sheen` textures);
-    /// other models have no layers and are returned as they are.
+    /// only [`Bsdf::Layered`] has layers, other models are returned as they are.
     pub fn with_layers_scaled(
         self,
         clearcoat: f32,
@@ -309,6 +307,8 @@ impl Bsdf {
         }
     }
 
+    /// The same model with the dielectric's `specular` scaled by `specular_scale` and its
+    /// `specular_color` by `color_scale` (`KHR_materials_specular` textures); only
     /// [`Bsdf::MetallicRoughness`] and [`Bsdf::Layered`] have these parameters.
     #[inline]
     pub fn with_specular_scaled(self, specular_scale: f32, color_scale: Rgb) -> Bsdf {
