@@ -245,17 +245,7 @@ impl Bsdf {
                 bump,
                 ..Default::default()
             }),
-            Bsdf::MetallicRoughness(params) => {
-                Bsdf::MetallicRoughness(MetallicRoughness { bump, ..params })
-            }
-            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
-                base: MetallicRoughness {
-                    bump,
-                    ..layered.base
-                },
-                ..layered
-            }),
-            other => other,
+            other => other.with_base(|params| MetallicRoughness { bump, ..params }),
         }
     }
 
@@ -264,18 +254,25 @@ impl Bsdf {
     /// [`Bsdf::MetallicRoughness`] has these parameters.
     #[inline]
     pub fn with_metallic_roughness_scaled(self, metallic_scale: f32, roughness_scale: f32) -> Bsdf {
-        let scaled = |params: MetallicRoughness| MetallicRoughness {
+        self.with_base(|params| MetallicRoughness {
             metallic: params.metallic * metallic_scale,
             // alpha = roughness^2, so it scales by the square; the clamp to MIN_ALPHA
             // commutes with the scale because the scale is at most 1.
             alpha: (params.alpha * roughness_scale * roughness_scale)
                 .clamp(microfacet::MIN_ALPHA, 1.0),
             ..params
-        };
+        })
+    }
+
+    /// The same model with `change` applied to its metallic-roughness parameters (those of
+    /// [`Bsdf::MetallicRoughness`], or the base of [`Bsdf::Layered`]); other models have none
+    /// and are returned as they are.
+    #[inline]
+    fn with_base(self, change: impl Fn(MetallicRoughness) -> MetallicRoughness) -> Bsdf {
         match self {
-            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(scaled(params)),
+            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(change(params)),
             Bsdf::Layered(layered) => Bsdf::Layered(Layered {
-                base: scaled(layered.base),
+                base: change(layered.base),
                 ..layered
             }),
             other => other,
@@ -312,19 +309,11 @@ impl Bsdf {
     /// [`Bsdf::MetallicRoughness`] and [`Bsdf::Layered`] have these parameters.
     #[inline]
     pub fn with_specular_scaled(self, specular_scale: f32, color_scale: Rgb) -> Bsdf {
-        let scaled = |params: MetallicRoughness| MetallicRoughness {
+        self.with_base(|params| MetallicRoughness {
             specular: params.specular * specular_scale,
             specular_color: params.specular_color * color_scale,
             ..params
-        };
-        match self {
-            Bsdf::MetallicRoughness(params) => Bsdf::MetallicRoughness(scaled(params)),
-            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
-                base: scaled(layered.base),
-                ..layered
-            }),
-            other => other,
-        }
+        })
     }
 
     /// BSDF value for a pair of directions (zero for delta lobes).

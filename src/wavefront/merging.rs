@@ -195,32 +195,25 @@ impl LightVertexGrid {
     }
 }
 
-/// The pass's merging: its light vertices filed in a grid, and how many light paths made them.
-#[derive(Clone, Copy, Debug)]
-pub struct Merging<'a> {
-    pub grid: &'a LightVertexGrid,
-    pub vertices: &'a [LightVertex],
-    pub light_paths: u64,
-}
-
-/// The radiance the pass's light vertices near `at` (a camera vertex reached through a delta
-/// bounce, at bounce 1 or later) send along the camera path, its throughput included, with
-/// each one's MIS weight against the path tracer.
+/// The radiance the pass's `vertices` (filed in `grid`, made by `light_paths` light paths)
+/// near `at` (a camera vertex reached through a delta bounce, at bounce 1 or later) send along
+/// the camera path, its throughput included, with each one's MIS weight against the path
+/// tracer.
 /// `max_depth` is the path tracer's cap: light vertices whose paths it could not trace are
 /// left out, so both strategies cover the same paths.
 #[inline(never)]
 pub(super) fn merge(
     scene: &RenderScene,
-    merging: &Merging,
+    (grid, vertices, light_paths): (&LightVertexGrid, &[LightVertex], u64),
     at: &CameraVertex,
     max_depth: u32,
 ) -> Rgb {
-    let radius = merging.grid.radius();
+    let radius = grid.radius();
     let radius_squared = radius * radius;
-    let light_paths = merging.light_paths as f32;
+    let light_paths = light_paths as f32;
     let mut sum = Rgb::ZERO;
-    merging.grid.for_each_candidate(at.p, |index| {
-        let vertex = &merging.vertices[index];
+    grid.for_each_candidate(at.p, |index| {
+        let vertex = &vertices[index];
         // The path tracer reaches the light at bounce `bounce + 1 + delta bounces`.
         if (vertex.p - at.p).length_squared() >= radius_squared
             || at.bounce + 1 + vertex.delta_bounces >= max_depth

@@ -38,7 +38,7 @@ use crate::render_scene::RenderScene;
 use crate::settings::{Adaptive, RenderSettings};
 use batch::{HitBatch, PathState, RayBatch, ShadowBatch, compact_paths};
 use light_vertices::LightVertex;
-use merging::{LightVertexGrid, Merging};
+use merging::LightVertexGrid;
 use params::{CausticWeights, ShadeParams};
 use rayon::prelude::*;
 use stats::RenderStats;
@@ -199,22 +199,17 @@ pub fn render_rows(
                 &mut splats,
                 &mut light_vertices,
             );
-            let merging = merge_radius.map(|base| {
+            if let Some(base) = merge_radius {
                 let radius = merging::pass_radius(base, sample_index);
                 merge_grid.rebuild(&light_vertices, radius);
-                Merging {
-                    grid: &merge_grid,
-                    vertices: &light_vertices,
-                    light_paths,
-                }
-            });
+            }
             stats.light_time += start.elapsed();
             Some(CausticWeights {
                 light_path_count: light_paths,
                 camera,
                 connections,
                 light_vertices: &light_vertices,
-                merging,
+                merge_grid: merge_radius.is_some().then_some(&merge_grid),
             })
         } else {
             None

@@ -2,7 +2,7 @@
 //! settings that shape the estimator, and the pass's light paths for caustics.
 
 use super::light_vertices::LightVertex;
-use super::merging::Merging;
+use super::merging::LightVertexGrid;
 use crate::camera::PinholeCamera;
 use crate::math::rng::Sampler;
 
@@ -41,7 +41,8 @@ pub struct CausticWeights<'a> {
     pub connections: bool,
     /// The pass's light vertices, in path order (empty without connections and merging).
     pub light_vertices: &'a [LightVertex],
-    /// The merging of light vertices at camera vertices reached through a delta bounce
-    /// (caustics seen behind a mirror or glass, [`super::merging`]), if on.
-    pub merging: Option<Merging<'a>>,
+    /// With merging of light vertices at camera vertices reached through a delta bounce
+    /// (caustics seen behind a mirror or glass, [`super::merging`]): the pass's light vertices
+    /// in their grid, which holds the pass's merge radius.
+    pub merge_grid: Option<&'a LightVertexGrid>,
 }

@@ -200,13 +200,14 @@ pub(super) fn shade_one<const THROUGH: bool>(
     // excepted), the pass's light vertices nearby. With light paths MIS is on, so a zero
     // `bsdf_pdf` after the first hit means the last bounce was delta.
     if let Some(caustics) = &params.caustics
-        && let Some(merging) = &caustics.merging
+        && let Some(grid) = caustics.merge_grid
         && bounce > 0
         && *path.bsdf_pdf == 0.0
         && !bsdf.is_delta()
     {
         let at = camera_vertex(&at(), *path.throughput, bounce);
-        *path.radiance += merging::merge(scene, merging, &at, params.max_depth);
+        let pass = (grid, caustics.light_vertices, caustics.light_path_count);
+        *path.radiance += merging::merge(scene, pass, &at, params.max_depth);
     }
 
     // --- BSDF sampling for the next ray.
@@ -407,11 +408,11 @@ fn caustic_state_after(
     } else if caustics.connections && previous_pdf > 0.0 {
         let factor = camera_vertex_factor(cos_x1, sample.pdf, to_previous_cos, hit.t, previous_pdf);
         CausticState::Pending { factor }
-    } else if let Some(merging) = &caustics.merging
+    } else if let Some(grid) = caustics.merge_grid
         && previous_pdf == 0.0
     {
         // Reached through a delta bounce: the merge at this vertex shares the caustic.
-        let (paths, radius) = (merging.light_paths as f32, merging.grid.radius());
+        let (paths, radius) = (caustics.light_path_count as f32, grid.radius());
         let factor = merge_vertex_factor(paths, radius, cos_x1, sample.pdf);
         CausticState::Pending { factor }
     } else {
