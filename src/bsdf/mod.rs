@@ -361,14 +361,27 @@ impl Bsdf {
     /// Samples `wi` from `u_lobe` (lobe choice) and `u` (direction).
     #[inline]
     pub fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+        self.sample_drawing(wo, || u_lobe, || u)
+    }
+
+    /// [`Bsdf::sample`] with its random numbers drawn only when the model uses them: a
+    /// Lambertian surface takes no lobe number, a smooth dielectric no direction, a mirror
+    /// neither (each number of the Sobol sampler costs a hash and a scramble).
+    #[inline(always)]
+    pub fn sample_drawing(
+        &self,
+        wo: Vec3A,
+        u_lobe: impl FnOnce() -> f32,
+        u: impl FnOnce() -> Vec2,
+    ) -> Option<BsdfSample> {
         match *self {
-            Bsdf::Lambertian { albedo } => lambert::sample(albedo, wo, u),
+            Bsdf::Lambertian { albedo } => lambert::sample(albedo, wo, u()),
             Bsdf::Mirror { tint } => mirror::sample(tint, wo),
             Bsdf::Dielectric { ior, fresnel, tint } => {
-                dielectric::sample(ior, fresnel, tint, wo, u_lobe)
+                dielectric::sample(ior, fresnel, tint, wo, u_lobe())
             }
-            Bsdf::MetallicRoughness(params) => params.sample(wo, u_lobe, u),
-            Bsdf::Layered(layered) => layered.sample(wo, u_lobe, u),
+            Bsdf::MetallicRoughness(params) => params.sample(wo, u_lobe(), u()),
+            Bsdf::Layered(layered) => layered.sample(wo, u_lobe(), u()),
             Bsdf::Unlit { .. } => None,
         }
     }

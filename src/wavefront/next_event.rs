@@ -54,11 +54,23 @@ pub(super) struct ShadingPoint {
     /// Unit geometric normal, and whether the ray arrived on its side.
     pub(super) ng: Vec3A,
     pub(super) front: bool,
+    /// The origin of rays that leave on the side the path came from ([`front_origin`]),
+    /// shared by the shadow rays, the caustic connection and a reflected next ray.
+    pub(super) front_origin: Vec3A,
     /// The shading frame, the material (textures applied) and the direction back along the
     /// ray in that frame.
     pub(super) frame: Frame,
     pub(super) bsdf: Bsdf,
     pub(super) wo_local: Vec3A,
+}
+
+/// The point `p` (rounding error `p_error`) moved off its surface (geometric normal `ng`)
+/// to the side a path arrived on (`front`: the side `ng` points to): the origin of every ray
+/// that leaves on that side.
+#[inline(always)]
+pub(super) fn front_origin(p: Vec3A, p_error: Vec3A, ng: Vec3A, front: bool) -> Vec3A {
+    let front_normal = if front { ng } else { -ng };
+    offset_ray_origin(p, p_error, ng, front_normal)
 }
 
 /// Absorption of the media the shadow rays cross (`Rgb::ZERO`: none): on the path's side of
@@ -153,6 +165,7 @@ fn sample_lights<const THROUGH: bool>(
         p_error,
         ng,
         front,
+        front_origin: origin,
         frame,
         bsdf,
         wo_local,
@@ -165,7 +178,6 @@ fn sample_lights<const THROUGH: bool>(
     // (without them, lights that BSDF sampling cannot hit, such as punctual ones, would be
     // lost behind rough glass); elsewhere lights behind are skipped below.
     let front_normal = if front { ng } else { -ng };
-    let origin = offset_ray_origin(p, p_error, ng, front_normal);
     shadow.set_front_origin(origin);
     let transmits = THROUGH && bsdf.transmits();
     if transmits {
@@ -386,11 +398,13 @@ mod tests {
                     let ns = (ng + 0.3 * unit(6)).normalize_or(ng);
                     let wo = unit(9);
                     let frame = Frame::from_normal(ns);
+                    let (p_error, front) = (Vec3A::splat(1e-6), ng.dot(wo) > 0.0);
                     let at = ShadingPoint {
                         p,
-                        p_error: Vec3A::splat(1e-6),
+                        p_error,
                         ng,
-                        front: ng.dot(wo) > 0.0,
+                        front,
+                        front_origin: front_origin(p, p_error, ng, front),
                         frame,
                         bsdf: *bsdf,
                         wo_local: frame.to_local(wo),

@@ -55,26 +55,40 @@ fn shade_batch<const THROUGH: bool>(
     }
     let mut samples = [LightSamples::default(); GROUPS_PER_PASS];
     let mut capped = 0;
+    // Every column cut to the batch's length once, so that indexing them needs no bounds
+    // check per path.
+    let (origin, direction) = (&rays.origin[..n], &rays.direction[..n]);
+    let (t, slot, barycentric) = (&hits.t[..n], &hits.slot[..n], &hits.barycentric[..n]);
+    let (throughput, radiance) = (&mut paths.throughput[..n], &mut paths.radiance[..n]);
+    let (count_emission, bsdf_pdf) = (&mut paths.count_emission[..n], &mut paths.bsdf_pdf[..n]);
+    let (alive, radiance_scale) = (&mut paths.alive[..n], &mut paths.radiance_scale[..n]);
+    let (medium, caustic, cone) = (
+        &mut paths.medium[..n],
+        &mut paths.caustic[..n],
+        &mut paths.cone[..n],
+    );
+    let rng_key = &paths.rng_key[..n];
+    let (next_origin, next_direction) = (&mut next_rays.origin[..n], &mut next_rays.direction[..n]);
     for i in 0..n {
         let hit = Hit {
-            origin: rays.origin[i],
-            direction: rays.direction[i],
-            t: hits.t[i],
-            slot: hits.slot[i],
-            barycentric: hits.barycentric[i],
+            origin: origin[i],
+            direction: direction[i],
+            t: t[i],
+            slot: slot[i],
+            barycentric: barycentric[i],
         };
         let mut path = PathView {
-            throughput: &mut paths.throughput[i],
-            radiance: &mut paths.radiance[i],
-            count_emission: &mut paths.count_emission[i],
-            bsdf_pdf: &mut paths.bsdf_pdf[i],
-            alive: &mut paths.alive[i],
-            radiance_scale: &mut paths.radiance_scale[i],
-            medium: &mut paths.medium[i],
-            caustic: &mut paths.caustic[i],
-            cone: &mut paths.cone[i],
-            next_origin: &mut next_rays.origin[i],
-            next_direction: &mut next_rays.direction[i],
+            throughput: &mut throughput[i],
+            radiance: &mut radiance[i],
+            count_emission: &mut count_emission[i],
+            bsdf_pdf: &mut bsdf_pdf[i],
+            alive: &mut alive[i],
+            radiance_scale: &mut radiance_scale[i],
+            medium: &mut medium[i],
+            caustic: &mut caustic[i],
+            cone: &mut cone[i],
+            next_origin: &mut next_origin[i],
+            next_direction: &mut next_direction[i],
         };
         let (lattice, shadow) = shadows.lattice_and_slots(i);
         let next_event = NextEvent {
@@ -83,12 +97,7 @@ fn shade_batch<const THROUGH: bool>(
             shadow,
         };
         capped += u64::from(shade_one::<THROUGH>(
-            scene,
-            &params,
-            paths.rng_key[i],
-            hit,
-            &mut path,
-            next_event,
+            scene, &params, rng_key[i], hit, &mut path, next_event,
         ));
     }
     capped

@@ -12,7 +12,7 @@ use super::mis::{
     path_tracer_weight,
 };
 use super::next_event::{
-    Media, NextEvent, SHADOW_RAY_SHORTENING, ShadingPoint, sample_lights_front,
+    self, Media, NextEvent, SHADOW_RAY_SHORTENING, ShadingPoint, sample_lights_front,
     sample_lights_through,
 };
 use super::params::ShadeParams;
@@ -150,11 +150,13 @@ pub(super) fn shade_one<const THROUGH: bool>(
     // The shading point, for next-event estimation and the caustic connection. Made in
     // each branch: one made before the branches would be stored to memory for the
     // out-of-line call, at every hit.
+    let front_origin = next_event::front_origin(p, p_error, ng, front);
     let at = || ShadingPoint {
         p,
         p_error,
         ng,
         front,
+        front_origin,
         frame,
         bsdf,
         wo_local,
@@ -211,11 +213,10 @@ pub(super) fn shade_one<const THROUGH: bool>(
     }
 
     // --- BSDF sampling for the next ray.
-    let u_lobe = params.sampler.uniform(key, bounce, dim::BSDF_LOBE);
-    let Some(sample) = bsdf.sample(
+    let Some(sample) = bsdf.sample_drawing(
         wo_local,
-        u_lobe,
-        params.sampler.uniform2(key, bounce, dim::BSDF_DIRECTION),
+        || params.sampler.uniform(key, bounce, dim::BSDF_LOBE),
+        || params.sampler.uniform2(key, bounce, dim::BSDF_DIRECTION),
     ) else {
         return false;
     };
@@ -269,7 +270,13 @@ pub(super) fn shade_one<const THROUGH: bool>(
     if bounce + 1 >= params.max_depth {
         return true;
     }
-    *path.next_origin = offset_ray_origin(p, p_error, ng, wi);
+    // A reflected ray leaves from the shadow rays' origin (the offset depends only on the
+    // side of `ng` the ray leaves on).
+    *path.next_origin = if (ng.dot(wi) < 0.0) == !front {
+        front_origin
+    } else {
+        offset_ray_origin(p, p_error, ng, wi)
+    };
     *path.next_direction = wi;
     *path.alive = true;
     false
@@ -330,13 +337,12 @@ fn connect_light_vertex<const THROUGH: bool>(
     else {
         return;
     };
-    let front_normal = if at.front { at.ng } else { -at.ng };
     let (origin, medium) = if !connection.through {
-        let origin = offset_ray_origin(at.p, at.p_error, at.ng, front_normal);
-        shadow.set_front_origin(origin);
-        (origin, media.front)
+        shadow.set_front_origin(at.front_origin);
+        (at.front_origin, media.front)
     } else if THROUGH {
-        let origin = offset_ray_origin(at.p, at.p_error, at.ng, -front_normal);
+        let back_normal = if at.front { -at.ng } else { at.ng };
+        let origin = offset_ray_origin(at.p, at.p_error, at.ng, back_normal);
         shadow.set_back_origin(origin);
         (origin, media.back)
     } else {
