@@ -191,10 +191,18 @@ impl RenderScene {
     /// world space.
     #[inline(always)]
     pub fn vertex_normals(&self, slot: usize) -> [Vec3; 3] {
-        match self.vertex_normals.get(slot) {
-            Some(n) if slot < self.leaf_prims.len() => *n,
-            _ => self.instanced(slot).vertex_normals(slot as u32),
+        match self.flat_vertex_normals(slot) {
+            Some(n) => *n,
+            None => self.instanced(slot).vertex_normals(slot as u32),
         }
+    }
+
+    /// [`Self::vertex_normals`] of a slot in the flat part, in place (`None` past it).
+    #[inline(always)]
+    pub fn flat_vertex_normals(&self, slot: usize) -> Option<&[Vec3; 3]> {
+        self.vertex_normals
+            .get(slot)
+            .filter(|_| slot < self.leaf_prims.len())
     }
 
     /// The instanced part, for a slot past the flat part.

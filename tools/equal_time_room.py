@@ -5,7 +5,8 @@ its measured speed to fill the budget), alternating arm by arm so that a change 
 machine's load falls on every arm alike. Prints one line per run, then the medians.
 
     python3 tools/equal_time_room.py REFERENCE.exr [--budgets 4 8 16] [--repeats 3] \
-        [--threshold 0.02] [--no-mitsuba]
+        [--threshold 0.02] [--no-mitsuba] [--mitsuba-filter box|gaussian] \
+        [--mitsuba-reference MITSUBA_REFERENCE.exr]
 
 Needs `cargo build --release --features examples --example equal_time` (or the dev profile with --profile debug)
 and, for Mitsuba, `python3 -m pip install mitsuba`. Mitsuba's fastest CPU variant,
@@ -33,10 +34,10 @@ def wavetrace(example, reference, budget, seed, extra):
     return {"spp": spp, "s": seconds, "rmse": rmse, "rel": rel, "top": top}
 
 
-def mitsuba(reference, spp, seed, size, out, variant):
+def mitsuba(reference, spp, seed, size, out, variant, pixel_filter):
     r = subprocess.run([sys.executable, "tools/mitsuba_room.py", "render", "scenes/room.toml",
                         out, "--spp", str(spp), "--seed", str(seed), "--size", str(size),
-                        "--filter", "box", "--variant", variant],
+                        "--filter", pixel_filter, "--variant", variant],
                        capture_output=True, text=True, check=True).stdout
     seconds = float(re.search(r"([\d.]+) s$", r.strip()).group(1))
     e = subprocess.run([sys.executable, "tools/mitsuba_room.py", "error", reference, out,
@@ -57,6 +58,10 @@ def main():
     p.add_argument("--size", type=int, default=256)
     p.add_argument("--no-mitsuba", action="store_true")
     p.add_argument("--mitsuba-variant", default="llvm_ad_rgb")
+    p.add_argument("--mitsuba-filter", choices=["box", "gaussian"], default="box",
+                   help="Mitsuba's pixel filter (its default is gaussian; wavetrace's is box)")
+    p.add_argument("--mitsuba-reference",
+                   help="Mitsuba's own reference (same filter); default: REFERENCE")
     p.add_argument("--arms", nargs="+", default=["independent", "sobol", "adaptive"],
                    help="wavetrace arms to run: independent, sobol, adaptive, no-connections")
     p.add_argument("--scratch", default="target/mitsuba_equal_time.exr")
@@ -64,12 +69,13 @@ def main():
     example = f"target/{args.profile}/examples/equal_time"
     arms = {
         "independent": ["--sampler", "independent"],
-        "sobol": ["--sampler", "sobol"],
+        "sobol": ["--sampler", "sobol"],  # the default estimator (merging included)
         "adaptive": ["--sampler", "independent", "--noise-threshold", str(args.threshold)],
         # The light paths without their connections to camera vertices (the code before them).
         "no-connections": ["--sampler", "independent", "--no-caustic-connections"],
     }
     arms = {name: arms[name] for name in args.arms}
+    mitsuba_reference = args.mitsuba_reference or args.reference
     results = {}
     mitsuba_rate = None  # samples per pixel per second, from the last Mitsuba run
     for repeat in range(args.repeats):
@@ -81,12 +87,12 @@ def main():
                 print(f"{budget:g} s {name} seed {seed}: {r}", flush=True)
             if not args.no_mitsuba:
                 if mitsuba_rate is None:
-                    probe = mitsuba(args.reference, 2, seed, args.size, args.scratch,
-                                    args.mitsuba_variant)
+                    probe = mitsuba(mitsuba_reference, 2, seed, args.size, args.scratch,
+                                    args.mitsuba_variant, args.mitsuba_filter)
                     mitsuba_rate = 2 / probe["s"]
                 spp = max(1, int(budget * mitsuba_rate))
-                r = mitsuba(args.reference, spp, seed, args.size, args.scratch,
-                            args.mitsuba_variant)
+                r = mitsuba(mitsuba_reference, spp, seed, args.size, args.scratch,
+                            args.mitsuba_variant, args.mitsuba_filter)
                 mitsuba_rate = r["spp"] / r["s"]
                 results.setdefault((f"mitsuba {args.mitsuba_variant}", budget), []).append(r)
                 print(f"{budget:g} s mitsuba seed {seed}: {r}", flush=True)
