@@ -751,6 +751,10 @@ pub struct SurfaceTextures {
     pub sheen_color: TextureRef,
     /// Alpha multiplies the sheen's roughness.
     pub sheen_roughness: TextureRef,
+    /// Red multiplies the thin film's factor (`KHR_materials_iridescence`).
+    pub iridescence: TextureRef,
+    /// Green mixes the thin film's thickness from its minimum to its maximum.
+    pub iridescence_thickness: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -762,7 +766,14 @@ impl SurfaceTextures {
             || self.normal.is_set()
             || self.specular.is_set()
             || self.specular_color.is_set()
-            || self.has_layer_textures())
+            || self.has_layer_textures()
+            || self.has_film_textures())
+    }
+
+    /// Whether a thin-film (iridescence) texture is set.
+    #[inline]
+    pub fn has_film_textures(&self) -> bool {
+        self.iridescence.is_set() || self.iridescence_thickness.is_set()
     }
 
     /// Whether a clearcoat or sheen texture is set.

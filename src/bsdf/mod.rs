@@ -21,11 +21,13 @@ pub mod metallic_roughness;
 pub mod microfacet;
 pub mod mirror;
 pub mod sheen;
+pub mod thin_film;
 
 pub use bump_shadowing::BumpShadowing;
 pub use dielectric::FresnelModel;
 pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
+pub use thin_film::ThinFilm;
 
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 
@@ -312,6 +314,17 @@ impl Bsdf {
         self.with_base(|params| MetallicRoughness {
             specular: params.specular * specular_scale,
             specular_color: params.specular_color * color_scale,
+            ..params
+        })
+    }
+
+    /// The same model with its thin film's factor scaled by `factor_scale` and its thickness
+    /// mixed from minimum to maximum by `thickness_mix` (the `KHR_materials_iridescence`
+    /// textures); models without a metallic-roughness base are returned as they are.
+    #[inline]
+    pub fn with_film_scaled(self, factor_scale: f32, thickness_mix: f32) -> Bsdf {
+        self.with_base(|params| MetallicRoughness {
+            film: params.film.scaled(factor_scale, thickness_mix),
             ..params
         })
     }

@@ -184,6 +184,11 @@ pub struct MaterialTextures {
     pub sheen_color: Option<TextureSlot>,
     /// `sheenRoughnessTexture`: alpha (linear) multiplies `sheen_roughness`.
     pub sheen_roughness: Option<TextureSlot>,
+    /// `KHR_materials_iridescence` `iridescenceTexture`: red (linear) multiplies the factor.
+    pub iridescence: Option<TextureSlot>,
+    /// `iridescenceThicknessTexture`: green (linear) mixes the thickness from the minimum (0)
+    /// to the maximum (1).
+    pub iridescence_thickness: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -199,6 +204,8 @@ impl MaterialTextures {
             && self.clearcoat_roughness.is_none()
             && self.sheen_color.is_none()
             && self.sheen_roughness.is_none()
+            && self.iridescence.is_none()
+            && self.iridescence_thickness.is_none()
     }
 }
 
@@ -229,6 +236,23 @@ impl Volume {
         let absorption = -Rgb::new(colour.x.ln(), colour.y.ln(), colour.z.ln()) / distance;
         (distance > 0.0 && absorption.max_element() > 0.0).then_some(Volume { absorption })
     }
+}
+
+/// `KHR_materials_iridescence` of a [`Material::MetallicRoughness`] entity: a thin film on
+/// the surface whose interference colours the metal's and the opaque dielectric's Fresnel
+/// terms (`bsdf::thin_film`). The loader has made every value sane (docs/importing.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Iridescence {
+    /// `iridescenceFactor` in [0, 1] (0: no film).
+    pub factor: f32,
+    /// `iridescenceIor`, the film's index of refraction (> 0).
+    pub ior: f32,
+    /// `iridescenceThicknessMinimum` in nanometres (>= 0): the thickness where the thickness
+    /// texture's green is 0.
+    pub thickness_minimum: f32,
+    /// `iridescenceThicknessMaximum` in nanometres (>= 0): the thickness without a thickness
+    /// texture, and where its green is 1.
+    pub thickness_maximum: f32,
 }
 
 /// How the alpha of a surface covers it (glTF `alphaMode` MASK or BLEND; OPAQUE surfaces

@@ -127,6 +127,9 @@ pub(super) fn textured_surface_in_cone(
     if textures.has_layer_textures() {
         bsdf = layers_textured(scene, textures, (uv, footprint), bsdf);
     }
+    if textures.has_film_textures() {
+        bsdf = film_textured(scene, textures, (uv, footprint), bsdf);
+    }
     if textures.normal.is_set() {
         let mapped = mapped_normal(scene, textures, slot, b, (uv, footprint), ng, ns, wo);
         return (bsdf.with_bump_shadowing(mapped, ns), mapped);
@@ -186,6 +189,29 @@ fn layers_textured(
         colour(&textures.clearcoat_roughness).y,
         colour(&textures.sheen_color),
         sheen_roughness,
+    )
+}
+
+/// `bsdf` with its thin film scaled by the `KHR_materials_iridescence` textures: the factor by
+/// the red of `iridescenceTexture`, the thickness mixed from minimum to maximum by the green
+/// of `iridescenceThicknessTexture`.
+#[inline(never)]
+fn film_textured(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    (uv, footprint): (Vec2, f32),
+    bsdf: Bsdf,
+) -> Bsdf {
+    let channel = |t: &TextureRef, pick: fn(Rgb) -> f32| {
+        if t.is_set() {
+            pick(lookup_filtered(scene, t, uv, footprint))
+        } else {
+            1.0
+        }
+    };
+    bsdf.with_film_scaled(
+        channel(&textures.iridescence, |c| c.x),
+        channel(&textures.iridescence_thickness, |c| c.y),
     )
 }
 

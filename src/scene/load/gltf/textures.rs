@@ -322,6 +322,20 @@ pub(super) fn layer_texture_infos<'m>(
     ]
 }
 
+/// The texture infos of `KHR_materials_iridescence` (factor, thickness), both linear.
+pub(super) fn film_texture_infos<'m>(
+    m: &'m gltf::Material,
+) -> [(Option<&'m gltf::json::Value>, Encoding); 2] {
+    let info = |key: &str| {
+        m.extension_value("KHR_materials_iridescence")
+            .and_then(|e| e.get(key))
+    };
+    [
+        (info("iridescenceTexture"), Encoding::Linear),
+        (info("iridescenceThicknessTexture"), Encoding::Linear),
+    ]
+}
+
 /// [`texture_slot`] for a texture info read from raw JSON (`index`, `texCoord`,
 /// `KHR_texture_transform`).
 pub(super) fn raw_info_slot(
