@@ -747,6 +747,10 @@ pub struct SurfaceTextures {
     pub clearcoat: TextureRef,
     /// Green multiplies the clearcoat's roughness.
     pub clearcoat_roughness: TextureRef,
+    /// The coat's own tangent-space normal map.
+    pub clearcoat_normal: TextureRef,
+    /// Multiplies the coat's normal map's x and y.
+    pub clearcoat_normal_scale: f32,
     /// Multiplies the sheen colour (`KHR_materials_sheen`).
     pub sheen_color: TextureRef,
     /// Alpha multiplies the sheen's roughness.
@@ -764,6 +768,7 @@ impl SurfaceTextures {
         !(self.base_color.is_set()
             || self.metallic_roughness.is_set()
             || self.normal.is_set()
+            || self.clearcoat_normal.is_set()
             || self.specular.is_set()
             || self.specular_color.is_set()
             || self.has_layer_textures()

@@ -341,6 +341,13 @@ def main():
              "Coat Roughness": 0.1},
             normal_strength=2.0, coat_normal=True,
         ),
+        # The same without the coat's own normal map (the coat over the smooth normal).
+        "p_coat_smooth": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.02, 0.05, 0.3, 1), "Roughness": 0.5, "Coat Weight": 0.225,
+             "Coat Roughness": 0.1},
+            normal_strength=2.0, coat_normal=False,
+        ),
         # Thin films (iridescence): Cycles' model, set by hand in the .blend, added to the
         # exported file by add_iridescence.
         "p_film_dark": lambda: build_principled(

@@ -251,6 +251,22 @@ impl Bsdf {
         }
     }
 
+    /// The same model with the coat's own normal `coat` (unit, world space; a
+    /// `clearcoatNormalTexture`'s) for a hit whose shading normal is `shading` (the local
+    /// frame's `+z`); only [`Bsdf::Layered`] has a coat, other models are returned as they are.
+    #[inline]
+    pub fn with_coat_normal(self, coat: Vec3A, shading: Vec3A) -> Bsdf {
+        match self {
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                coat_normal: Some(crate::math::Vec3::from(
+                    crate::math::frame::Frame::from_normal(shading).to_local(coat),
+                )),
+                ..layered
+            }),
+            other => other,
+        }
+    }
+
     /// The same model with `metallic` scaled by `metallic_scale` and the perceptual roughness
     /// by `roughness_scale` (a glTF metallic-roughness texture's blue and green); only
     /// [`Bsdf::MetallicRoughness`] has these parameters.
@@ -430,6 +446,7 @@ mod tests {
                 clearcoat_alpha: 0.05,
                 sheen_color: Rgb::new(0.9, 0.5, 0.7),
                 sheen_roughness: 0.4,
+                coat_normal: None,
             }),
         ];
         for (b, bsdf) in bsdfs.iter().enumerate() {
@@ -475,6 +492,7 @@ mod tests {
                 clearcoat_alpha: 0.05,
                 sheen_color: Rgb::new(0.5, 0.4, 0.3),
                 sheen_roughness: 0.4,
+                coat_normal: None,
             })
         };
         let opaque = MetallicRoughness::new(Rgb::new(0.9, 0.8, 0.7), 0.3, 0.5);

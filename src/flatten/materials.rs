@@ -61,6 +61,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
                 clearcoat_alpha: alpha_from_roughness(clearcoat_roughness),
                 sheen_color,
                 sheen_roughness,
+                coat_normal: None,
             };
             if layered.has_layers() {
                 return Bsdf::layered(layered);
@@ -183,6 +184,8 @@ impl TextureInterner {
             specular_color: self.intern(t.specular_color.as_ref()),
             clearcoat: self.intern(t.clearcoat.as_ref()),
             clearcoat_roughness: self.intern(t.clearcoat_roughness.as_ref()),
+            clearcoat_normal: self.intern(t.clearcoat_normal.as_ref()),
+            clearcoat_normal_scale: t.clearcoat_normal_scale,
             sheen_color: self.intern(t.sheen_color.as_ref()),
             sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
             iridescence: self.intern(t.iridescence.as_ref()),

@@ -83,7 +83,7 @@ pub(super) fn flatten_meshes<'w>(
                 entity,
                 world_from_object: transform,
                 material,
-                normal_mapped: textures.is_some_and(|t| t.normal.is_some()),
+                normal_mapped: textures.is_some_and(MaterialTextures::is_normal_mapped),
             });
             continue;
         }
@@ -94,7 +94,7 @@ pub(super) fn flatten_meshes<'w>(
         if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
             emitter = None; // a black emission texture: nothing is emitted
         }
-        let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
+        let tangents = textures.filter(|t| t.is_normal_mapped()).map(|_| tangents);
         // An emitter's coverage also weighs its light samples (`flatten/lights.rs`).
         let alpha = match alpha {
             Some(coverage) => {

@@ -179,6 +179,11 @@ pub struct MaterialTextures {
     pub clearcoat: Option<TextureSlot>,
     /// `clearcoatRoughnessTexture`: green (linear) multiplies `clearcoat_roughness`.
     pub clearcoat_roughness: Option<TextureSlot>,
+    /// `clearcoatNormalTexture`: the coat's own tangent-space normal map (decoded as
+    /// [`Self::normal`], in the same tangent frame).
+    pub clearcoat_normal: Option<TextureSlot>,
+    /// `clearcoatNormalTexture.scale`: multiplies the coat's map's x and y.
+    pub clearcoat_normal_scale: f32,
     /// `KHR_materials_sheen` `sheenColorTexture`: colour (decoded from sRGB) that multiplies
     /// `sheen_color`.
     pub sheen_color: Option<TextureSlot>,
@@ -192,6 +197,11 @@ pub struct MaterialTextures {
 }
 
 impl MaterialTextures {
+    /// Whether a normal map (the base's or the coat's) needs the mesh's tangents.
+    pub fn is_normal_mapped(&self) -> bool {
+        self.normal.is_some() || self.clearcoat_normal.is_some()
+    }
+
     /// Whether no texture is set.
     pub fn is_empty(&self) -> bool {
         self.base_color.is_none()
@@ -202,6 +212,7 @@ impl MaterialTextures {
             && self.specular_color.is_none()
             && self.clearcoat.is_none()
             && self.clearcoat_roughness.is_none()
+            && self.clearcoat_normal.is_none()
             && self.sheen_color.is_none()
             && self.sheen_roughness.is_none()
             && self.iridescence.is_none()

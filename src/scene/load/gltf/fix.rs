@@ -276,11 +276,6 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
             .count()
     };
     count(
-        "KHR_materials_clearcoat clearcoatNormalTexture is ignored: the coat takes the \
-         base's shading normal",
-        with_keys("KHR_materials_clearcoat", &["clearcoatNormalTexture"]),
-    );
-    count(
         "KHR_materials_clearcoat does not darken emission (the specification scales it by \
          1 - clearcoat * Fresnel)",
         materials

@@ -7,8 +7,8 @@
 //! `textures.rs`) read through one UV set.
 
 use super::textures::{
-    TextureTable, film_texture_infos, info_slot, layer_texture_infos, raw_info_slot,
-    raw_uv_transform, spec_gloss_diffuse_texture, texture_slot,
+    TextureTable, coat_normal_texture_info, film_texture_infos, info_slot, layer_texture_infos,
+    raw_info_slot, raw_uv_transform, spec_gloss_diffuse_texture, texture_slot,
 };
 use crate::math::Rgb;
 use crate::scene::{
@@ -291,6 +291,7 @@ fn material_textures(
     let specular = m.specular();
     let [clearcoat, clearcoat_roughness, sheen_color, sheen_roughness] = layer_texture_infos(m);
     let [iridescence, iridescence_thickness] = film_texture_infos(m);
+    let coat_normal = coat_normal_texture_info(m);
     let (base_color_slot, metallic_roughness_slot) = match spec_gloss {
         // The diffuse texture stands for the base colour; the specular-glossiness texture
         // has no metallic-roughness equivalent texel by texel (warned once per file).
@@ -335,6 +336,7 @@ fn material_textures(
         raw_info_slot(textures, sheen_roughness.0, sheen_roughness.1),
         raw_info_slot(textures, iridescence.0, iridescence.1),
         raw_info_slot(textures, iridescence_thickness.0, iridescence_thickness.1),
+        raw_info_slot(textures, coat_normal, Encoding::Linear),
     ];
     let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
     let [
@@ -350,6 +352,7 @@ fn material_textures(
         sheen_roughness_map,
         iridescence_map,
         iridescence_thickness_map,
+        coat_normal_map,
     ] = slots.map(|slot| {
         let (slot, set) = slot?;
         if Some(set) != uv_set {
@@ -376,6 +379,10 @@ fn material_textures(
         sheen_roughness: sheen_roughness_map,
         iridescence: iridescence_map,
         iridescence_thickness: iridescence_thickness_map,
+        clearcoat_normal: coat_normal_map,
+        clearcoat_normal_scale: coat_normal
+            .and_then(|info| info["scale"].as_f64())
+            .map_or(1.0, |s| s as f32),
     };
     (textures, uv_set)
 }
