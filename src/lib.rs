@@ -69,6 +69,7 @@ pub use wavefront::{Flow, Progress, render, render_rows};
 pub mod internals {
     pub use crate::bsdf::Bsdf;
     pub use crate::bsdf::sheen::albedo as sheen_albedo;
+    pub use crate::bsdf::thin_film::reflectance as thin_film_reflectance;
     pub use crate::camera::PinholeCamera;
     pub use crate::geometry::Shape;
     pub use crate::lights::LightTable;

@@ -747,10 +747,18 @@ pub struct SurfaceTextures {
     pub clearcoat: TextureRef,
     /// Green multiplies the clearcoat's roughness.
     pub clearcoat_roughness: TextureRef,
+    /// The coat's own tangent-space normal map.
+    pub clearcoat_normal: TextureRef,
+    /// Multiplies the coat's normal map's x and y.
+    pub clearcoat_normal_scale: f32,
     /// Multiplies the sheen colour (`KHR_materials_sheen`).
     pub sheen_color: TextureRef,
     /// Alpha multiplies the sheen's roughness.
     pub sheen_roughness: TextureRef,
+    /// Red multiplies the thin film's factor (`KHR_materials_iridescence`).
+    pub iridescence: TextureRef,
+    /// Green mixes the thin film's thickness from its minimum to its maximum.
+    pub iridescence_thickness: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -760,9 +768,17 @@ impl SurfaceTextures {
         !(self.base_color.is_set()
             || self.metallic_roughness.is_set()
             || self.normal.is_set()
+            || self.clearcoat_normal.is_set()
             || self.specular.is_set()
             || self.specular_color.is_set()
-            || self.has_layer_textures())
+            || self.has_layer_textures()
+            || self.has_film_textures())
+    }
+
+    /// Whether a thin-film (iridescence) texture is set.
+    #[inline]
+    pub fn has_film_textures(&self) -> bool {
+        self.iridescence.is_set() || self.iridescence_thickness.is_set()
     }
 
     /// Whether a clearcoat or sheen texture is set.

@@ -8,7 +8,12 @@ Cases (`--only NAME`):
   0: the map is not connected, the baseline);
 - `p_`: a smooth sphere of one Principled material on a grey floor: rough metal, plastic,
   rough transmission, specular tint (with and without transmission), and a clear coat over a
-  normal-mapped base with its own coat normal map.
+  normal-mapped base with its own coat normal map;
+- `p_film`: the sphere under a thin film (Principled "Thin Film Thickness" and "Thin Film
+  IOR"), over a dark and over a light dielectric. Blender 4.5's glTF exporter and importer
+  drop the film, so the exported file gets its `KHR_materials_iridescence` added here
+  (factor 1, the same thickness and index) and Cycles renders the .blend: what Blender's
+  import would give if it read the extension.
 
 Each case prints the whole-image mean of wavetrace and Cycles, their ratio, and the median
 over 8 x 8-pixel blocks of |wavetrace - Cycles| / Cycles. Results go to OUT/results.txt.
@@ -220,6 +225,36 @@ def export(path):
     )
 
 
+def add_iridescence(glb, material, film):
+    """Adds `KHR_materials_iridescence` (`film`, its JSON) to the material named `material`
+    of the GLB file `glb`, in place."""
+    import json
+    import struct
+
+    data = open(glb, "rb").read()
+    magic, version, _ = struct.unpack_from("<III", data, 0)
+    json_length, json_type = struct.unpack_from("<II", data, 12)
+    doc = json.loads(data[20 : 20 + json_length])
+    rest = data[20 + json_length :]
+    for m in doc["materials"]:
+        if m.get("name") == material:
+            m.setdefault("extensions", {})["KHR_materials_iridescence"] = film
+    doc.setdefault("extensionsUsed", []).append("KHR_materials_iridescence")
+    text = json.dumps(doc).encode()
+    text += b" " * ((4 - len(text) % 4) % 4)
+    header = struct.pack("<III", magic, version, 20 + len(text) + len(rest))
+    with open(glb, "wb") as out:
+        out.write(header + struct.pack("<II", len(text), json_type) + text + rest)
+
+
+def exr_channel_means(path):
+    img = bpy.data.images.load(path, check_existing=False)
+    px = list(img.pixels)
+    n = len(px) // 4
+    bpy.data.images.remove(img)
+    return [sum(px[4 * i + c] for i in range(n)) / n for c in range(3)]
+
+
 def exr_luma(path):
     img = bpy.data.images.load(path, check_existing=False)
     px = list(img.pixels)
@@ -244,6 +279,17 @@ def compare(ours, cycles, block=8):
     return ma, mb, median
 
 
+def centre_ratio(ours, cycles, fraction=20 / 64):
+    """wavetrace / Cycles over the central square (`fraction` of the width: the sphere's
+    middle in the `p_` scenes)."""
+    w, h, a = ours
+    _, _, b = cycles
+    half = max(1, int(w * fraction / 2))
+    idx = [y * w + x for y in range(h // 2 - half, h // 2 + half)
+           for x in range(w // 2 - half, w // 2 + half)]
+    return sum(a[i] for i in idx) / sum(b[i] for i in idx)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--wavetrace", required=True)
@@ -252,6 +298,8 @@ def main():
     ap.add_argument("--size", type=int, default=64)
     ap.add_argument("--only", default=None)
     ap.add_argument("--extra", default="", help="more wavetrace arguments, space separated")
+    ap.add_argument("--cycles-only", action="store_true",
+                    help="render (and keep) the Cycles references only")
     args = ap.parse_args(sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else None)
     out = args.out or tempfile.mkdtemp(prefix="blender-textures-")
     os.makedirs(out, exist_ok=True)
@@ -293,6 +341,31 @@ def main():
              "Coat Roughness": 0.1},
             normal_strength=2.0, coat_normal=True,
         ),
+        # The same without the coat's own normal map (the coat over the smooth normal).
+        "p_coat_smooth": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.02, 0.05, 0.3, 1), "Roughness": 0.5, "Coat Weight": 0.225,
+             "Coat Roughness": 0.1},
+            normal_strength=2.0, coat_normal=False,
+        ),
+        # Thin films (iridescence): Cycles' model, set by hand in the .blend, added to the
+        # exported file by add_iridescence.
+        "p_film_dark": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.05, 0.05, 0.05, 1), "Roughness": 0.3, "Thin Film Thickness": 300.0,
+             "Thin Film IOR": 2.0},
+        ),
+        "p_film_light": lambda: build_principled(
+            out, args.size,
+            {"Base Color": (0.8, 0.8, 0.8, 1), "Roughness": 0.5, "Thin Film Thickness": 450.0,
+             "Thin Film IOR": 1.6},
+        ),
+    }
+    films = {
+        "p_film_dark": {"iridescenceFactor": 1.0, "iridescenceIor": 2.0,
+                        "iridescenceThicknessMaximum": 300.0},
+        "p_film_light": {"iridescenceFactor": 1.0, "iridescenceIor": 1.6,
+                         "iridescenceThicknessMaximum": 450.0},
     }
     lines = []
     for name, build in cases.items():
@@ -301,9 +374,13 @@ def main():
         scene = build()
         glb = os.path.join(out, f"{name}.glb")
         export(glb)
+        if name in films:
+            add_iridescence(glb, "principled", films[name])
         cyc = os.path.join(out, f"{name}-cycles.exr")
         if not os.path.exists(cyc):
             render_cycles(scene, cyc, args.samples)
+        if args.cycles_only:
+            continue
         ours = os.path.join(out, f"{name}-wavetrace.exr")
         subprocess.run(
             [exe, "render", glb, "-o", ours, "--width", str(args.size), "--height",
@@ -311,8 +388,11 @@ def main():
             check=True,
         )
         ma, mb, median = compare(exr_luma(ours), exr_luma(cyc))
+        channels = [a / b for a, b in zip(exr_channel_means(ours), exr_channel_means(cyc))]
+        centre = centre_ratio(exr_luma(ours), exr_luma(cyc))
         lines.append(f"{name}: wavetrace {ma:.5f} cycles {mb:.5f} ratio {ma / mb:.4f} "
-                     f"median block error {median:.4f}")
+                     f"(R G B {channels[0]:.4f} {channels[1]:.4f} {channels[2]:.4f}) "
+                     f"median block error {median:.4f}, sphere centre ratio {centre:.4f}")
         print(lines[-1], flush=True)
     with open(os.path.join(out, "results.txt"), "w") as f:
         f.write("\n".join(lines) + "\n")

@@ -17,12 +17,13 @@
 //! `(1 - clearcoat Fc)` and sheen factor. The layers are on the side of `wo`, as two-sided
 //! surfaces are (from inside glass, the coat reflects back inside).
 //!
-//! The coat has its own normal: where a normal map tilts the base's shading normal, the coat
-//! keeps the smooth (interpolated) normal, as the specification says of a coat without
-//! `clearcoatNormalTexture` (which wavetrace does not read; Blender's Coat Normal is likewise
-//! separate from the base's Normal). Its lobe and its Fresnel `Fc` are evaluated in the frame
-//! of that normal ([`super::BumpShadowing::smooth_normal`], the same vector the base's Bump
-//! Map Correction uses).
+//! The coat has its own normal: its `clearcoatNormalTexture` (Blender's Coat Normal) where it
+//! has one ([`Layered::coat_normal`]), else the smooth (interpolated) normal, also where a
+//! normal map tilts the base's shading normal, as the specification says of a coat without
+//! its own normal texture ([`super::BumpShadowing::smooth_normal`], the same vector the
+//! base's Bump Map Correction uses). Its lobe and its Fresnel `Fc` are evaluated in the frame
+//! of that normal. Blender's Bump Map Correction does not apply to the coat (Cycles applies it
+//! to diffuse closures only).
 //!
 //! Sampling picks the coat (GGX visible normals), the sheen (uniform hemisphere: the lobe
 //! peaks at grazing angles, where a cosine would sample it least) or the base (its own
@@ -58,6 +59,9 @@ pub struct Layered {
     pub sheen_color: Rgb,
     /// `sheenRoughnessFactor` in [0, 1] (clamped to [`sheen::MIN_ROUGHNESS`] when used).
     pub sheen_roughness: f32,
+    /// The coat's own normal in the shading frame, from `clearcoatNormalTexture` (set by
+    /// [`super::Bsdf::with_coat_normal`]); `None`: the smooth normal.
+    pub coat_normal: Option<Vec3>,
 }
 
 /// Schlick's Fresnel of the coat at cosine `c`.
@@ -120,7 +124,7 @@ impl Layered {
     /// `None` where it is the shading frame itself.
     #[inline]
     fn coat_frame(&self) -> Option<Frame> {
-        let n = self.base.bump.smooth_normal;
+        let n = self.coat_normal.unwrap_or(self.base.bump.smooth_normal);
         (n != Vec3::Z).then(|| Frame::from_normal(Vec3A::from(n)))
     }
 

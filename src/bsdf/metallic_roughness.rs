@@ -34,6 +34,13 @@
 //! The diffuse lobe carries Blender's Bump Map Correction ([`BumpShadowing`]) where a normal
 //! map tilts the shading normal.
 //!
+//! A thin film (`KHR_materials_iridescence`, [`ThinFilm`]) replaces the Fresnel terms of the
+//! metal and of the opaque dielectric's specular lobe by the film's, blended by its factor;
+//! the diffuse base is then layered under the film's specular albedo estimate (Cycles': the
+//! film's Fresnel term at `wo` times the compensated lobe's albedo), and the multiscatter
+//! compensation keeps the film-less average Fresnel term (as Cycles' does). Sampling is
+//! unchanged. Without a film (factor 0) every value is computed as before, bit for bit.
+//!
 //! Surfaces without transmission are two-sided: they reflect on the side `wo` is on.
 //!
 //! Sampling picks the diffuse lobe (cosine) or the microfacet lobe (visible normals) by their
@@ -50,6 +57,7 @@ use super::microfacet::{
     alpha_from_roughness, distribution, masking_shadowing, reflect_about, refract_about,
     refraction_half_vector, sample_visible_normal, visible_normal_pdf,
 };
+use super::thin_film::ThinFilm;
 use crate::math::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use crate::math::{Rgb, Vec2, Vec3A, luminance, max_component};
 use std::f32::consts::FRAC_1_PI;
@@ -82,6 +90,10 @@ pub struct MetallicRoughness {
     /// Blender's Bump Map Correction on the diffuse lobe (none unless a normal map tilts the
     /// shading normal at this hit; set by [`super::Bsdf::with_bump_shadowing`]).
     pub bump: BumpShadowing,
+    /// `KHR_materials_iridescence`: thin-film interference on the metal's and the opaque
+    /// dielectric's Fresnel terms ([`ThinFilm::NONE`]: none, and exactly the code path of a
+    /// surface without it).
+    pub film: ThinFilm,
 }
 
 impl Default for MetallicRoughness {
@@ -96,6 +108,7 @@ impl Default for MetallicRoughness {
             specular_color: Rgb::ONE,
             transmission: 0.0,
             bump: BumpShadowing::NONE,
+            film: ThinFilm::NONE,
         }
     }
 }
@@ -223,6 +236,21 @@ impl MetallicRoughness {
         if t <= 0.0 { 1.0 } else { r / (r + t) }
     }
 
+    /// The opaque dielectric's specular albedo at cosine `mu` under the thin film, given the
+    /// film-less one `plain` ([`compensated_schlick_albedo`]): the film's Fresnel term at
+    /// `mu` times the compensated lobe's albedo without Fresnel (`E(mu)` times the
+    /// compensation), Cycles' estimate for thin films (exact for a smooth surface; a rough
+    /// one averages the Fresnel term over the microfacets around `mu`), blended with `plain`
+    /// by the factor as the lobe's Fresnel term is.
+    #[inline(never)]
+    fn film_layer_albedo(&self, plain: Rgb, f0: Rgb, mu: f32) -> Rgb {
+        let fresnel = self.film.over_dielectric(Rgb::ZERO, f0, self.ior, mu);
+        let lobe = ggx_albedo::albedo(mu, self.alpha)
+            * energy_compensation(ggx_albedo::schlick_average(f0), mu, self.alpha);
+        // over_dielectric blended the film with zero: add the plain share back.
+        fresnel * lobe + plain * (1.0 - self.film.factor)
+    }
+
     /// BSDF value f(wo, wi).
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
         if let Some(albedo) = self.as_lambertian() {
@@ -247,19 +275,29 @@ impl MetallicRoughness {
                     wo.z,
                     self.alpha,
                 );
-                f += metal * specular_brdf * schlick(self.base_color, c) * compensation;
+                let mut fresnel = schlick(self.base_color, c);
+                if self.film.is_present() {
+                    fresnel = self.film.over_conductor(fresnel, self.base_color, c);
+                }
+                f += metal * specular_brdf * fresnel * compensation;
             }
             if opaque > 0.0 {
                 // Blender's layering: the diffuse base gets what the compensated specular
                 // layer does not reflect of the light from wo (its directional albedo).
                 let f0 = self.dielectric_f0();
-                let layer = compensated_schlick_albedo(f0, wo.z, self.alpha);
+                let mut layer = compensated_schlick_albedo(f0, wo.z, self.alpha);
+                if self.film.is_present() {
+                    layer = self.film_layer_albedo(layer, f0, wo.z);
+                }
                 let base = (1.0 - self.specular * max_component(layer)).max(0.0)
                     * (FRAC_1_PI * bump)
                     * self.base_color;
                 let compensation =
                     energy_compensation(ggx_albedo::schlick_average(f0), wo.z, self.alpha);
-                let fr = schlick(f0, c);
+                let mut fr = schlick(f0, c);
+                if self.film.is_present() {
+                    fr = self.film.over_dielectric(fr, f0, self.ior, c);
+                }
                 f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
             if glass > 0.0 {

@@ -21,11 +21,13 @@ pub mod metallic_roughness;
 pub mod microfacet;
 pub mod mirror;
 pub mod sheen;
+pub mod thin_film;
 
 pub use bump_shadowing::BumpShadowing;
 pub use dielectric::FresnelModel;
 pub use layered::Layered;
 pub use metallic_roughness::MetallicRoughness;
+pub use thin_film::ThinFilm;
 
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 
@@ -249,6 +251,22 @@ impl Bsdf {
         }
     }
 
+    /// The same model with the coat's own normal `coat` (unit, world space; a
+    /// `clearcoatNormalTexture`'s) for a hit whose shading normal is `shading` (the local
+    /// frame's `+z`); only [`Bsdf::Layered`] has a coat, other models are returned as they are.
+    #[inline]
+    pub fn with_coat_normal(self, coat: Vec3A, shading: Vec3A) -> Bsdf {
+        match self {
+            Bsdf::Layered(layered) => Bsdf::Layered(Layered {
+                coat_normal: Some(crate::math::Vec3::from(
+                    crate::math::frame::Frame::from_normal(shading).to_local(coat),
+                )),
+                ..layered
+            }),
+            other => other,
+        }
+    }
+
     /// The same model with `metallic` scaled by `metallic_scale` and the perceptual roughness
     /// by `roughness_scale` (a glTF metallic-roughness texture's blue and green); only
     /// [`Bsdf::MetallicRoughness`] has these parameters.
@@ -312,6 +330,17 @@ impl Bsdf {
         self.with_base(|params| MetallicRoughness {
             specular: params.specular * specular_scale,
             specular_color: params.specular_color * color_scale,
+            ..params
+        })
+    }
+
+    /// The same model with its thin film's factor scaled by `factor_scale` and its thickness
+    /// mixed from minimum to maximum by `thickness_mix` (the `KHR_materials_iridescence`
+    /// textures); models without a metallic-roughness base are returned as they are.
+    #[inline]
+    pub fn with_film_scaled(self, factor_scale: f32, thickness_mix: f32) -> Bsdf {
+        self.with_base(|params| MetallicRoughness {
+            film: params.film.scaled(factor_scale, thickness_mix),
             ..params
         })
     }
@@ -430,6 +459,7 @@ mod tests {
                 clearcoat_alpha: 0.05,
                 sheen_color: Rgb::new(0.9, 0.5, 0.7),
                 sheen_roughness: 0.4,
+                coat_normal: None,
             }),
         ];
         for (b, bsdf) in bsdfs.iter().enumerate() {
@@ -475,6 +505,7 @@ mod tests {
                 clearcoat_alpha: 0.05,
                 sheen_color: Rgb::new(0.5, 0.4, 0.3),
                 sheen_roughness: 0.4,
+                coat_normal: None,
             })
         };
         let opaque = MetallicRoughness::new(Rgb::new(0.9, 0.8, 0.7), 0.3, 0.5);

@@ -3,15 +3,29 @@
 //! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness};
+use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness, ThinFilm};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
-use crate::scene::{Material, MaterialTextures, TextureSlot, Volume};
+use crate::scene::{Iridescence, Material, MaterialTextures, TextureSlot, Volume};
 use crate::texture::{Mipmapped, SurfaceTextures, Texture, TextureRef};
 use std::sync::Arc;
 
+/// The thin film of an entity's `KHR_materials_iridescence`, or [`ThinFilm::NONE`].
+fn thin_film_of(iridescence: Option<&Iridescence>) -> ThinFilm {
+    match iridescence {
+        Some(i) if i.factor > 0.0 => ThinFilm {
+            factor: i.factor,
+            ior: i.ior,
+            thickness: i.thickness_maximum,
+            thickness_minimum: i.thickness_minimum,
+        },
+        _ => ThinFilm::NONE,
+    }
+}
+
 /// The render-side scattering model of a scene material; `mr_textured` says whether a
-/// metallic-roughness texture varies it (which rules out the mirror special case).
-pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
+/// metallic-roughness texture varies it (which rules out the mirror special case), `film` is
+/// its thin film (which rules out the mirror too: the film colours the metal's reflection).
+pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
     match *m {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
@@ -39,6 +53,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 specular_color,
                 transmission,
                 bump: BumpShadowing::NONE,
+                film,
             };
             let layered = Layered {
                 base,
@@ -46,6 +61,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 clearcoat_alpha: alpha_from_roughness(clearcoat_roughness),
                 sheen_color,
                 sheen_roughness,
+                coat_normal: None,
             };
             if layered.has_layers() {
                 return Bsdf::layered(layered);
@@ -58,7 +74,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                     tint: base_color,
                 };
             }
-            if metallic == 1.0 && roughness == 0.0 && !mr_textured {
+            if metallic == 1.0 && roughness == 0.0 && !mr_textured && !film.is_present() {
                 // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
                 // metal, Schlick's brightening toward grazing angles is left out).
                 return Bsdf::Mirror { tint: base_color };
@@ -86,9 +102,11 @@ impl MaterialTable {
         m: &Material,
         textures: Option<&MaterialTextures>,
         volume: Option<&Volume>,
+        iridescence: Option<&Iridescence>,
     ) -> u32 {
         let surface = self.interner.surface(textures);
-        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
+        let film = thin_film_of(iridescence);
+        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set(), film);
         let absorption = volume.map_or(Rgb::ZERO, |v| v.absorption);
         let key = (bsdf, surface, absorption);
         let found = self.materials.iter().position(|b| *b == key);
@@ -166,8 +184,12 @@ impl TextureInterner {
             specular_color: self.intern(t.specular_color.as_ref()),
             clearcoat: self.intern(t.clearcoat.as_ref()),
             clearcoat_roughness: self.intern(t.clearcoat_roughness.as_ref()),
+            clearcoat_normal: self.intern(t.clearcoat_normal.as_ref()),
+            clearcoat_normal_scale: t.clearcoat_normal_scale,
             sheen_color: self.intern(t.sheen_color.as_ref()),
             sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
+            iridescence: self.intern(t.iridescence.as_ref()),
+            iridescence_thickness: self.intern(t.iridescence_thickness.as_ref()),
         }
     }
 }

@@ -11,8 +11,8 @@ use crate::error::{Error, Result};
 use crate::geometry::TriangleGeom;
 use crate::math::{Affine3A, Mat3A, Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::scene::{
-    AlphaCoverage, Emitter, Material, MaterialTextures, Mesh, Name, SharedMesh, Transform,
-    VertexColors, VertexTangents, Volume, mesh_of,
+    AlphaCoverage, Emitter, Iridescence, Material, MaterialTextures, Mesh, Name, SharedMesh,
+    Transform, VertexColors, VertexTangents, Volume, mesh_of,
 };
 use crate::texture::TextureRef;
 use rayon::prelude::*;
@@ -44,7 +44,7 @@ pub(super) fn flatten_meshes<'w>(
         (entity, name),
         transform,
         (mesh, shared),
-        (material, alpha, volume),
+        (material, alpha, volume, iridescence),
         textures,
         (tangents, colors),
         emitter,
@@ -53,7 +53,12 @@ pub(super) fn flatten_meshes<'w>(
             (hecs::Entity, Option<&Name>),
             Option<&Transform>,
             (Option<&Mesh>, Option<&SharedMesh>),
-            (&Material, Option<&AlphaCoverage>, Option<&Volume>),
+            (
+                &Material,
+                Option<&AlphaCoverage>,
+                Option<&Volume>,
+                Option<&Iridescence>,
+            ),
             Option<&MaterialTextures>,
             (Option<&VertexTangents>, Option<&VertexColors>),
             Option<&Emitter>,
@@ -66,7 +71,7 @@ pub(super) fn flatten_meshes<'w>(
         };
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
-        let material = materials.index(material, textures, volume);
+        let material = materials.index(material, textures, volume, iridescence);
         let mut emitter = validate_emitter(emitter, path, name)?;
         if let Some(shared) = shared
             && instanced.contains(&Arc::as_ptr(&shared.0))
@@ -78,7 +83,7 @@ pub(super) fn flatten_meshes<'w>(
                 entity,
                 world_from_object: transform,
                 material,
-                normal_mapped: textures.is_some_and(|t| t.normal.is_some()),
+                normal_mapped: textures.is_some_and(MaterialTextures::is_normal_mapped),
             });
             continue;
         }
@@ -89,7 +94,7 @@ pub(super) fn flatten_meshes<'w>(
         if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
             emitter = None; // a black emission texture: nothing is emitted
         }
-        let tangents = textures.and_then(|t| t.normal.as_ref()).map(|_| tangents);
+        let tangents = textures.filter(|t| t.is_normal_mapped()).map(|_| tangents);
         // An emitter's coverage also weighs its light samples (`flatten/lights.rs`).
         let alpha = match alpha {
             Some(coverage) => {

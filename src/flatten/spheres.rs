@@ -55,7 +55,7 @@ pub(super) fn flatten_spheres(
                 "radius must be positive and the sphere's bounds finite",
             ));
         }
-        let material = materials.index(material, None, volume);
+        let material = materials.index(material, None, volume, None);
         let emitter = validate_emitter(emitter, path, name)?;
         prims.groups.push(Group {
             first: prims.count,

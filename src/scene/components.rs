@@ -179,14 +179,29 @@ pub struct MaterialTextures {
     pub clearcoat: Option<TextureSlot>,
     /// `clearcoatRoughnessTexture`: green (linear) multiplies `clearcoat_roughness`.
     pub clearcoat_roughness: Option<TextureSlot>,
+    /// `clearcoatNormalTexture`: the coat's own tangent-space normal map (decoded as
+    /// [`Self::normal`], in the same tangent frame).
+    pub clearcoat_normal: Option<TextureSlot>,
+    /// `clearcoatNormalTexture.scale`: multiplies the coat's map's x and y.
+    pub clearcoat_normal_scale: f32,
     /// `KHR_materials_sheen` `sheenColorTexture`: colour (decoded from sRGB) that multiplies
     /// `sheen_color`.
     pub sheen_color: Option<TextureSlot>,
     /// `sheenRoughnessTexture`: alpha (linear) multiplies `sheen_roughness`.
     pub sheen_roughness: Option<TextureSlot>,
+    /// `KHR_materials_iridescence` `iridescenceTexture`: red (linear) multiplies the factor.
+    pub iridescence: Option<TextureSlot>,
+    /// `iridescenceThicknessTexture`: green (linear) mixes the thickness from the minimum (0)
+    /// to the maximum (1).
+    pub iridescence_thickness: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
+    /// Whether a normal map (the base's or the coat's) needs the mesh's tangents.
+    pub fn is_normal_mapped(&self) -> bool {
+        self.normal.is_some() || self.clearcoat_normal.is_some()
+    }
+
     /// Whether no texture is set.
     pub fn is_empty(&self) -> bool {
         self.base_color.is_none()
@@ -197,8 +212,11 @@ impl MaterialTextures {
             && self.specular_color.is_none()
             && self.clearcoat.is_none()
             && self.clearcoat_roughness.is_none()
+            && self.clearcoat_normal.is_none()
             && self.sheen_color.is_none()
             && self.sheen_roughness.is_none()
+            && self.iridescence.is_none()
+            && self.iridescence_thickness.is_none()
     }
 }
 
@@ -229,6 +247,23 @@ impl Volume {
         let absorption = -Rgb::new(colour.x.ln(), colour.y.ln(), colour.z.ln()) / distance;
         (distance > 0.0 && absorption.max_element() > 0.0).then_some(Volume { absorption })
     }
+}
+
+/// `KHR_materials_iridescence` of a [`Material::MetallicRoughness`] entity: a thin film on
+/// the surface whose interference colours the metal's and the opaque dielectric's Fresnel
+/// terms (`bsdf::thin_film`). The loader has made every value sane (docs/importing.md).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Iridescence {
+    /// `iridescenceFactor` in [0, 1] (0: no film).
+    pub factor: f32,
+    /// `iridescenceIor`, the film's index of refraction (> 0).
+    pub ior: f32,
+    /// `iridescenceThicknessMinimum` in nanometres (>= 0): the thickness where the thickness
+    /// texture's green is 0.
+    pub thickness_minimum: f32,
+    /// `iridescenceThicknessMaximum` in nanometres (>= 0): the thickness without a thickness
+    /// texture, and where its green is 1.
+    pub thickness_maximum: f32,
 }
 
 /// How the alpha of a surface covers it (glTF `alphaMode` MASK or BLEND; OPAQUE surfaces

@@ -373,6 +373,7 @@ mod tests {
                 clearcoat_alpha: 0.05,
                 sheen_color: Rgb::new(0.4, 0.3, 0.2),
                 sheen_roughness: 0.5,
+                coat_normal: None,
             }),
         ];
         let mut rays_kept = 0;

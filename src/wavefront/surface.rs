@@ -139,11 +139,22 @@ pub(super) fn textured_surface_in_cone(
     if textures.has_layer_textures() {
         bsdf = layers_textured(scene, textures, (uv, footprint), bsdf);
     }
-    if textures.normal.is_set() {
-        let mapped = mapped_normal(scene, textures, slot, b, (uv, footprint), ng, ns, wo);
-        return (bsdf.with_bump_shadowing(mapped, ns), mapped);
+    if textures.has_film_textures() {
+        bsdf = film_textured(scene, textures, (uv, footprint), bsdf);
     }
-    (bsdf, ns)
+    let mut shading = ns;
+    if textures.normal.is_set() {
+        let map = (&textures.normal, textures.normal_scale);
+        shading = mapped_normal(scene, map, slot, b, (uv, footprint), ng, ns, wo);
+        bsdf = bsdf.with_bump_shadowing(shading, ns);
+    }
+    if textures.clearcoat_normal.is_set() {
+        // The coat's own map, in the same tangent frame about the smooth normal.
+        let map = (&textures.clearcoat_normal, textures.clearcoat_normal_scale);
+        let coat = mapped_normal(scene, map, slot, b, (uv, footprint), ng, ns, wo);
+        bsdf = bsdf.with_coat_normal(coat, shading);
+    }
+    (bsdf, shading)
 }
 
 /// `bsdf` with its dielectric's specular strength and colour scaled by the
@@ -201,6 +212,29 @@ fn layers_textured(
     )
 }
 
+/// `bsdf` with its thin film scaled by the `KHR_materials_iridescence` textures: the factor by
+/// the red of `iridescenceTexture`, the thickness mixed from minimum to maximum by the green
+/// of `iridescenceThicknessTexture`.
+#[inline(never)]
+fn film_textured(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    (uv, footprint): (Vec2, f32),
+    bsdf: Bsdf,
+) -> Bsdf {
+    let channel = |t: &TextureRef, pick: fn(Rgb) -> f32| {
+        if t.is_set() {
+            pick(lookup_filtered(scene, t, uv, footprint))
+        } else {
+            1.0
+        }
+    };
+    bsdf.with_film_scaled(
+        channel(&textures.iridescence, |c| c.x),
+        channel(&textures.iridescence_thickness, |c| c.y),
+    )
+}
+
 /// The shading normal from a tangent-space normal map. The tangent is made orthogonal to
 /// `ns` (Gram-Schmidt); the bitangent is `cross(ns, tangent) * w`. A mapped normal that would
 /// put the viewer on the other side than the geometric normal does, or point into the
@@ -211,7 +245,7 @@ fn layers_textured(
 #[allow(clippy::too_many_arguments)]
 fn mapped_normal(
     scene: &RenderScene,
-    textures: &SurfaceTextures,
+    (map, scale): (&TextureRef, f32),
     slot: usize,
     b: Vec2,
     (uv, footprint): (Vec2, f32),
@@ -228,8 +262,8 @@ fn mapped_normal(
     }
     let handedness = if tangents[0].w < 0.0 { -1.0 } else { 1.0 };
     let bitangent = ns.cross(tangent) * handedness;
-    let c = lookup_filtered(scene, &textures.normal, uv, footprint);
-    let s = textures.normal_scale;
+    let c = lookup_filtered(scene, map, uv, footprint);
+    let s = scale;
     let m = Vec3A::new(
         (2.0 * c.x - 1.0) * s,
         (2.0 * c.y - 1.0) * s,
@@ -426,6 +460,93 @@ mod tests {
             (alpha - roughness * roughness).abs() < 1e-6,
             "alpha {alpha}, roughness {}",
             alpha.sqrt()
+        );
+    }
+
+    /// `iridescenceTexture`'s red multiplies the film's factor, `iridescenceThicknessTexture`'s
+    /// green mixes its thickness from the minimum to the maximum (both linear).
+    #[test]
+    fn iridescence_textures_scale_the_factor_and_mix_the_thickness() {
+        let dir = tempfile::tempdir().unwrap();
+        let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "extensions": {"KHR_materials_iridescence": {"iridescenceFactor": 0.8,
+                "iridescenceIor": 1.8, "iridescenceThicknessMinimum": 200.0,
+                "iridescenceThicknessMaximum": 600.0, "iridescenceTexture": {"index": 0},
+                "iridescenceThicknessTexture": {"index": 0}}}}"#;
+        let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 64, 10, 255]));
+        let path = textured_quad(dir.path(), material, &[texel]);
+        let loaded = crate::load_scene(&path).unwrap();
+        assert!(
+            !loaded.warnings.iter().any(|w| w.contains("iridescence")),
+            "{:?}",
+            loaded.warnings
+        );
+        let scene = crate::flatten(&loaded.world, &path).unwrap();
+        let slot = (scene.material.iter())
+            .position(|&m| scene.material_textures[m as usize].has_film_textures())
+            .expect("the quad's material reads the film's textures");
+        let material = scene.material[slot] as usize;
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let Bsdf::MetallicRoughness(params) = bsdf else {
+            panic!("{bsdf:?}")
+        };
+        let (red, green) = (128.0f32 / 255.0, 64.0f32 / 255.0);
+        let film = params.film;
+        assert!((film.factor - 0.8 * red).abs() < 1e-6, "{film:?}");
+        assert!(
+            (film.thickness - (200.0 + 400.0 * green)).abs() < 1e-3,
+            "{film:?}"
+        );
+        assert_eq!(film.ior, 1.8);
+    }
+
+    /// The coat's normal map is decoded as the base's, in the same tangent frame: with the
+    /// same texel and scale in both, the coat's normal is the shading normal; with the coat's
+    /// alone, the shading normal stays the smooth one and the coat tilts as the base would.
+    #[test]
+    fn the_coat_normal_map_is_read_as_the_base_normal_map() {
+        let dir = tempfile::tempdir().unwrap();
+        let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([220, 90, 200, 255]));
+        let both = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "normalTexture": {"index": 0, "scale": 0.5},
+            "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                "clearcoatNormalTexture": {"index": 0, "scale": 0.5}}}}"#;
+        let coat_only = r#"{"pbrMetallicRoughness": {"metallicFactor": 0.0},
+            "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                "clearcoatNormalTexture": {"index": 0, "scale": 0.5}}}}"#;
+        let surface = |material: &str| {
+            let path = textured_quad(dir.path(), material, std::slice::from_ref(&texel));
+            let loaded = crate::load_scene(&path).unwrap();
+            assert!(
+                !loaded.warnings.iter().any(|w| w.contains("clearcoat")),
+                "{:?}",
+                loaded.warnings
+            );
+            let scene = crate::flatten(&loaded.world, &path).unwrap();
+            let slot = (scene.material.iter())
+                .position(|&m| {
+                    scene.material_textures[m as usize]
+                        .clearcoat_normal
+                        .is_set()
+                })
+                .expect("the quad's material reads the coat's normal map");
+            let material = scene.material[slot] as usize;
+            let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+            let (bsdf, shading) = textured_surface(&scene, material, slot, b, z, z, z);
+            let Bsdf::Layered(layered) = bsdf else {
+                panic!("{bsdf:?}")
+            };
+            (layered.coat_normal.expect("the coat is mapped"), shading)
+        };
+        let (coat, shading) = surface(both);
+        assert!(shading.z < 0.99, "the base is mapped: {shading}");
+        assert!((coat - Vec3::Z).length() < 1e-5, "{coat}");
+        let (coat_alone, smooth) = surface(coat_only);
+        assert_eq!(smooth, Vec3A::Z);
+        assert!(
+            (coat_alone.z - shading.z).abs() < 1e-5,
+            "{coat_alone} {shading}"
         );
     }
 

@@ -37,6 +37,7 @@ fn coated(base: MetallicRoughness, clearcoat: f32, roughness: f32) -> Layered {
         clearcoat_alpha: alpha_from_roughness(roughness),
         sheen_color: Rgb::ZERO,
         sheen_roughness: 0.0,
+        coat_normal: None,
     }
 }
 
@@ -75,6 +76,22 @@ fn cases() -> Vec<(String, Layered, Vec3A)> {
                 0.8,
                 0.1,
             ),
+        ),
+        (
+            "coat 0.1 with its own normal map over a normal-mapped plastic",
+            Layered {
+                // The coat's normal 30 degrees from the shading normal, another way than the
+                // smooth one.
+                coat_normal: Some(direction(0.5, -1.0).into()),
+                ..coated(
+                    MetallicRoughness {
+                        bump: BumpShadowing::new(direction(0.6, 2.0), Vec3A::Z),
+                        ..base(Rgb::new(0.1, 0.2, 0.6), 0.0, 0.5)
+                    },
+                    0.8,
+                    0.1,
+                )
+            },
         ),
         (
             "sheen 0.3 over plastic",
@@ -362,6 +379,35 @@ fn the_coat_keeps_the_smooth_normal_under_a_normal_map() {
         f_coat > 100.0 * f_shading.max(1e-6),
         "{f_coat} vs {f_shading}"
     );
+}
+
+#[test]
+fn the_coat_takes_its_own_normal_map() {
+    // With a coat normal (clearcoatNormalTexture), the smooth coat over a black base reflects
+    // about that normal: neither about the shading normal nor about the smooth one.
+    let smooth = direction(0.6, 2.0);
+    let coat_normal = direction(0.4, -0.5);
+    let m = Layered {
+        coat_normal: Some(coat_normal.into()),
+        ..coated(
+            MetallicRoughness {
+                bump: BumpShadowing::new(Vec3A::Z, smooth),
+                ..lambertian(0.0)
+            },
+            1.0,
+            0.05,
+        )
+    };
+    let frame = crate::math::frame::Frame::from_normal(coat_normal);
+    let wo = frame.to_world(direction(0.5, 0.3));
+    let mirror_about_coat = frame.to_world(direction(0.5, 0.3 + std::f32::consts::PI));
+    let mirror_about_shading = Vec3A::new(-wo.x, -wo.y, wo.z);
+    let mirror_about_smooth = 2.0 * wo.dot(smooth) * smooth - wo;
+    let f_coat = m.eval(wo, mirror_about_coat).x;
+    for other in [mirror_about_shading, mirror_about_smooth] {
+        let f = m.eval(wo, other).x;
+        assert!(f_coat > 100.0 * f.max(1e-6), "{f_coat} vs {f}");
+    }
 }
 
 #[test]

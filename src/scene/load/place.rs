@@ -11,8 +11,9 @@ use crate::film::Image;
 use crate::math::{Affine3A, Vec3, luminance};
 use crate::scene::animation::Animated;
 use crate::scene::{
-    AlphaCoverage, Camera, Emitter, EnvironmentLight, Material, MaterialTextures, Mesh, Name,
-    PunctualLight, SharedMesh, Sphere, Transform, VertexColors, VertexTangents, Volume, mesh_of,
+    AlphaCoverage, Camera, Emitter, EnvironmentLight, Iridescence, Material, MaterialTextures,
+    Mesh, Name, PunctualLight, SharedMesh, Sphere, Transform, VertexColors, VertexTangents, Volume,
+    mesh_of,
 };
 use std::path::Path;
 use std::sync::Arc;
@@ -344,6 +345,7 @@ pub(super) fn copy_model(model: &hecs::World) -> hecs::World {
             VertexTangents,
             VertexColors,
             Volume,
+            Iridescence,
             AlphaCoverage,
             PunctualLight,
             Camera,

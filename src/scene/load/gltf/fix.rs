@@ -257,6 +257,7 @@ fn warn_count(path: &Path, warnings: &mut Vec<String>, what: &str, n: usize, uni
 /// The warnings about material features that are read only in part: occlusion maps, the
 /// textures of clearcoat and sheen, clearcoat over emission, volume thickness.
 fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings: &mut Vec<String>) {
+    iridescence_checks(path, materials, warnings);
     let mut count = |what: &str, n: usize| warn_count(path, warnings, what, n, "material");
     count(
         "occlusion maps are ignored",
@@ -274,11 +275,6 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
             })
             .count()
     };
-    count(
-        "KHR_materials_clearcoat clearcoatNormalTexture is ignored: the coat takes the \
-         base's shading normal",
-        with_keys("KHR_materials_clearcoat", &["clearcoatNormalTexture"]),
-    );
     count(
         "KHR_materials_clearcoat does not darken emission (the specification scales it by \
          1 - clearcoat * Fresnel)",
@@ -307,6 +303,48 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
     );
 }
 
+/// One warning for the `KHR_materials_iridescence` values the specification does not allow,
+/// naming the materials (the loader's fallbacks, `gltf/materials.rs`): an inverted thickness
+/// range (used as written), a negative thickness (0), an index that is not positive (1.3).
+fn iridescence_checks(path: &Path, materials: &[gltf::Material], warnings: &mut Vec<String>) {
+    let mut bad = Vec::new();
+    for (i, m) in materials.iter().enumerate() {
+        let Some(film) = m.extension_value("KHR_materials_iridescence") else {
+            continue;
+        };
+        let number = |key: &str| film[key].as_f64();
+        let (minimum, maximum) = (
+            number("iridescenceThicknessMinimum").unwrap_or(100.0),
+            number("iridescenceThicknessMaximum").unwrap_or(400.0),
+        );
+        let mut problems = Vec::new();
+        if minimum > maximum {
+            problems.push("thickness minimum above maximum (used as written)");
+        }
+        if minimum < 0.0 || maximum < 0.0 {
+            problems.push("negative thickness (taken as 0)");
+        }
+        if number("iridescenceIor").is_some_and(|ior| ior <= 0.0) {
+            problems.push("iridescenceIor not positive (taken as 1.3)");
+        }
+        if !problems.is_empty() {
+            let name = m
+                .name()
+                .map_or_else(|| format!("#{i}"), |n| format!("'{n}'"));
+            bad.push(format!("{name}: {}", problems.join(", ")));
+        }
+    }
+    if !bad.is_empty() {
+        warnings.push(format!(
+            "{}: KHR_materials_iridescence values out of range in {} material{}: {}",
+            path.display(),
+            bad.len(),
+            plural(bad.len()),
+            bad.join("; ")
+        ));
+    }
+}
+
 /// Material extensions wavetrace neither reads nor knows to be harmless, with the number of
 /// materials that use each.
 fn ignored_material_extensions(materials: &[gltf::Material]) -> BTreeMap<String, usize> {
@@ -321,6 +359,7 @@ fn ignored_material_extensions(materials: &[gltf::Material]) -> BTreeMap<String,
         "KHR_materials_unlit",
         "KHR_materials_variants",
         "KHR_materials_volume",
+        "KHR_materials_iridescence",
     ];
     let mut ignored = BTreeMap::<String, usize>::new();
     for m in materials {

@@ -7,11 +7,13 @@
 //! `textures.rs`) read through one UV set.
 
 use super::textures::{
-    TextureTable, info_slot, layer_texture_infos, raw_info_slot, raw_uv_transform,
-    spec_gloss_diffuse_texture, texture_slot,
+    TextureTable, coat_normal_texture_info, film_texture_infos, info_slot, layer_texture_infos,
+    raw_info_slot, raw_uv_transform, spec_gloss_diffuse_texture, texture_slot,
 };
 use crate::math::Rgb;
-use crate::scene::{AlphaCoverage, AlphaMode, Emitter, Material, MaterialTextures, Volume};
+use crate::scene::{
+    AlphaCoverage, AlphaMode, Emitter, Iridescence, Material, MaterialTextures, Volume,
+};
 use crate::texture::Encoding;
 
 /// Base colour of primitives without a material (Blender's importer default).
@@ -38,6 +40,37 @@ fn volume_of(m: &gltf::Material) -> Option<Volume> {
     Volume::from_attenuation(Rgb::new(channel(0), channel(1), channel(2)), distance)
 }
 
+/// The film's index and thicknesses (nm) when `KHR_materials_iridescence` leaves them out.
+const IRIDESCENCE_DEFAULTS: (f32, f32, f32) = (1.3, 100.0, 400.0);
+
+/// `KHR_materials_iridescence` (factor 0 or absent: none). Values the specification does not
+/// allow fall back (`fix.rs` warns once per file, naming the materials): a factor outside
+/// [0, 1] is clamped, an index that is not positive and finite is the default 1.3, a negative
+/// or non-finite thickness is 0 (no film there). An inverted range (minimum above maximum) is
+/// used as written, as the Khronos sample viewer does: the thickness texture's green still maps
+/// 0 to the minimum and 1 to the maximum.
+fn iridescence_of(m: &gltf::Material) -> Option<Iridescence> {
+    let film = m.extension_value("KHR_materials_iridescence")?;
+    let (default_ior, default_minimum, default_maximum) = IRIDESCENCE_DEFAULTS;
+    let number = |key: &str, default: f32| film[key].as_f64().map_or(default, |x| x as f32);
+    let thickness = |key: &str, default: f32| {
+        let t = number(key, default);
+        if t.is_finite() { t.max(0.0) } else { 0.0 }
+    };
+    let ior = number("iridescenceIor", default_ior);
+    let iridescence = Iridescence {
+        factor: unit(number("iridescenceFactor", 0.0)),
+        ior: if ior.is_finite() && ior > 0.0 {
+            ior
+        } else {
+            default_ior
+        },
+        thickness_minimum: thickness("iridescenceThicknessMinimum", default_minimum),
+        thickness_maximum: thickness("iridescenceThicknessMaximum", default_maximum),
+    };
+    (iridescence.factor > 0.0).then_some(iridescence)
+}
+
 /// How one glTF material appears in the world.
 pub(super) struct ImportedMaterial {
     pub(super) material: Material,
@@ -49,6 +82,8 @@ pub(super) struct ImportedMaterial {
     pub(super) alpha: Option<AlphaCoverage>,
     /// `KHR_materials_volume`'s absorbing medium, if it absorbs anything.
     pub(super) volume: Option<Volume>,
+    /// `KHR_materials_iridescence`'s thin film, if its factor is above 0.
+    pub(super) iridescence: Option<Iridescence>,
 }
 
 impl ImportedMaterial {
@@ -75,6 +110,7 @@ impl ImportedMaterial {
             uv_set: None,
             alpha: None,
             volume: None,
+            iridescence: None,
         }
     }
 }
@@ -102,6 +138,7 @@ pub(super) fn import_material(
             uv_set,
             alpha,
             volume: None,
+            iridescence: None,
         };
     }
     ImportedMaterial {
@@ -111,6 +148,7 @@ pub(super) fn import_material(
         uv_set,
         alpha,
         volume: volume_of(m),
+        iridescence: iridescence_of(m),
     }
 }
 
@@ -252,6 +290,8 @@ fn material_textures(
     let normal = m.normal_texture();
     let specular = m.specular();
     let [clearcoat, clearcoat_roughness, sheen_color, sheen_roughness] = layer_texture_infos(m);
+    let [iridescence, iridescence_thickness] = film_texture_infos(m);
+    let coat_normal = coat_normal_texture_info(m);
     let (base_color_slot, metallic_roughness_slot) = match spec_gloss {
         // The diffuse texture stands for the base colour; the specular-glossiness texture
         // has no metallic-roughness equivalent texel by texel (warned once per file).
@@ -294,6 +334,9 @@ fn material_textures(
         raw_info_slot(textures, clearcoat_roughness.0, clearcoat_roughness.1),
         raw_info_slot(textures, sheen_color.0, sheen_color.1),
         raw_info_slot(textures, sheen_roughness.0, sheen_roughness.1),
+        raw_info_slot(textures, iridescence.0, iridescence.1),
+        raw_info_slot(textures, iridescence_thickness.0, iridescence_thickness.1),
+        raw_info_slot(textures, coat_normal, Encoding::Linear),
     ];
     let uv_set = slots.iter().flatten().map(|(_, set)| *set).next();
     let [
@@ -307,6 +350,9 @@ fn material_textures(
         clearcoat_roughness_map,
         sheen_color_map,
         sheen_roughness_map,
+        iridescence_map,
+        iridescence_thickness_map,
+        coat_normal_map,
     ] = slots.map(|slot| {
         let (slot, set) = slot?;
         if Some(set) != uv_set {
@@ -331,6 +377,12 @@ fn material_textures(
         clearcoat_roughness: clearcoat_roughness_map,
         sheen_color: sheen_color_map,
         sheen_roughness: sheen_roughness_map,
+        iridescence: iridescence_map,
+        iridescence_thickness: iridescence_thickness_map,
+        clearcoat_normal: coat_normal_map,
+        clearcoat_normal_scale: coat_normal
+            .and_then(|info| info["scale"].as_f64())
+            .map_or(1.0, |s| s as f32),
     };
     (textures, uv_set)
 }

@@ -411,6 +411,9 @@ fn spawn_primitive(
         if let Some(v) = imported.volume {
             world.insert_one(entity, v).expect("just spawned");
         }
+        if let Some(i) = imported.iridescence {
+            world.insert_one(entity, i).expect("just spawned");
+        }
         entities.push(entity);
     }
     entities

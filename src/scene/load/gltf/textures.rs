@@ -45,7 +45,10 @@ fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
         if let Some(index) = spec_gloss_diffuse_texture(&m) {
             uses.push((index, Encoding::Srgb));
         }
-        for (info, encoding) in layer_texture_infos(&m) {
+        let extension_infos = (layer_texture_infos(&m).into_iter())
+            .chain(film_texture_infos(&m))
+            .chain([(coat_normal_texture_info(&m), Encoding::Linear)]);
+        for (info, encoding) in extension_infos {
             if let Some(index) = info.and_then(|i| i["index"].as_u64()) {
                 uses.push((index as usize, encoding));
             }
@@ -319,6 +322,26 @@ pub(super) fn layer_texture_infos<'m>(
             info("KHR_materials_sheen", "sheenRoughnessTexture"),
             Encoding::Linear,
         ),
+    ]
+}
+
+/// The texture info of `KHR_materials_clearcoat`'s `clearcoatNormalTexture` (linear).
+pub(super) fn coat_normal_texture_info<'m>(m: &'m gltf::Material) -> Option<&'m gltf::json::Value> {
+    m.extension_value("KHR_materials_clearcoat")
+        .and_then(|e| e.get("clearcoatNormalTexture"))
+}
+
+/// The texture infos of `KHR_materials_iridescence` (factor, thickness), both linear.
+pub(super) fn film_texture_infos<'m>(
+    m: &'m gltf::Material,
+) -> [(Option<&'m gltf::json::Value>, Encoding); 2] {
+    let info = |key: &str| {
+        m.extension_value("KHR_materials_iridescence")
+            .and_then(|e| e.get(key))
+    };
+    [
+        (info("iridescenceTexture"), Encoding::Linear),
+        (info("iridescenceThicknessTexture"), Encoding::Linear),
     ]
 }
 
