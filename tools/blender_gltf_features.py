@@ -14,6 +14,9 @@ Cases (`--only NAME`, a prefix):
   colour (0.8, 0.5, 0.2) at distance 1 in front of an emitting wall, without
   `thicknessFactor` (thin-walled) and with 1 (a volume boundary); besides the means, the
   colour through the cube's centre;
+- `rough_glass_0.4`, `rough_glass_0.8`: the same cube of clear rough glass (roughness 0.4 and
+  0.8, no volume), which Blender's importer makes a Principled BSDF of Blender's default
+  distribution, Multiscatter GGX;
 - `mip`, `mip_nomip`, `mip_nearest`, `mip_nearest_nomip`: a Lambertian plane with a
   repeating checkerboard (256 x 256 texels, 8-texel squares) seen from 1 unit above it toward
   the horizon under a sun, its sampler's `minFilter` LINEAR_MIPMAP_LINEAR (`mip`) or LINEAR
@@ -257,7 +260,7 @@ def build_mip(path, min_filter, mag_filter=9729):
     return 128, 64
 
 
-def build_volume(path, thickness):
+def build_volume(path, thickness, roughness=0.0, attenuation=True):
     g = Gltf()
     backdrop = g.material({
         "pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1], "metallicFactor": 0.0},
@@ -267,11 +270,13 @@ def build_volume(path, thickness):
     volume = {"attenuationColor": [0.8, 0.5, 0.2], "attenuationDistance": 1.0}
     if thickness > 0.0:
         volume["thicknessFactor"] = thickness
+    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0}}
+    if attenuation:
+        extensions["KHR_materials_volume"] = volume
     glass = g.material({
         "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0.0,
-                                 "roughnessFactor": 0.0},
-        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                       "KHR_materials_volume": volume}})
+                                 "roughnessFactor": roughness},
+        "extensions": extensions})
     g.node({"mesh": g.mesh(box((0.0, 0.5, 0.0), (1, 1, 1)), glass)})
     g.doc["cameras"] = [{"type": "perspective", "perspective": {
         "yfov": math.radians(30.0), "aspectRatio": 1.0, "znear": 0.01}}]
@@ -371,6 +376,8 @@ def main():
         "mip_nearest_nomip": lambda p: build_mip(p, 9728, 9728),
         "volume_thin": lambda p: build_volume(p, 0.0),
         "volume_thick": lambda p: build_volume(p, 1.0),
+        "rough_glass_0.4": lambda p: build_volume(p, 0.0, 0.4, attenuation=False),
+        "rough_glass_0.8": lambda p: build_volume(p, 0.0, 0.8, attenuation=False),
     }
     lines = []
     for name, build in cases.items():
@@ -402,7 +409,7 @@ def main():
             near = range(height // 6)
             line += (f"; RMSE far rows {row_rmse(a, b, far):.4f} near rows "
                      f"{row_rmse(a, b, near):.4f}")
-        if name.startswith("volume"):
+        if name.startswith("volume") or name.startswith("rough_glass"):
             # The cube's front face fills the central 24 x 24 pixels or more.
             centre = [y * width + x for y in range(height // 2 - 12, height // 2 + 12)
                       for x in range(width // 2 - 12, width // 2 + 12)]
