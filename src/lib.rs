@@ -68,6 +68,7 @@ pub use wavefront::{Flow, Progress, render, render_rows};
 #[doc(hidden)]
 pub mod internals {
     pub use crate::bsdf::Bsdf;
+    pub use crate::bsdf::ggx_glass_albedo::glass_energy_compensation;
     pub use crate::bsdf::sheen::albedo as sheen_albedo;
     pub use crate::bsdf::thin_film::reflectance as thin_film_reflectance;
     pub use crate::camera::PinholeCamera;

@@ -17,7 +17,9 @@
 //! that single scattering loses to masking comes back, so a white metal reflects all light at
 //! every roughness). Always on, for every file (the glTF specification's BRDF is single
 //! scattering; Cycles renders Blender's and imported files with multiscatter GGX). The
-//! rough glass part stays single scattering.
+//! rough glass part is compensated too, both lobes by `1 / E` of the white rough dielectric at
+//! `wo` ([`super::ggx_glass_albedo`], as Cycles compensates its GGX glass), so white rough glass
+//! reflects and transmits all light from either side.
 //!
 //! The opaque dielectric is layered as Blender's Principled BSDF is, not as the glTF
 //! specification's `fresnel_mix` (which takes `1 - F` per microfacet and reflects up to 1.43
@@ -52,6 +54,7 @@ use super::BsdfSample;
 use super::bump_shadowing::BumpShadowing;
 use super::dielectric::{FresnelModel, fresnel};
 use super::ggx_albedo::{self, compensated_schlick_albedo, energy_compensation};
+use super::ggx_glass_albedo::glass_energy_compensation;
 use super::lambert;
 use super::microfacet::{
     alpha_from_roughness, distribution, masking_shadowing, reflect_about, refract_about,
@@ -301,7 +304,10 @@ impl MetallicRoughness {
                 f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
             if glass > 0.0 {
-                f += Rgb::splat(glass * specular_brdf * dielectric_reflectance(c, eta));
+                let compensation = glass_energy_compensation(wo.z, self.alpha, eta);
+                f += Rgb::splat(
+                    glass * specular_brdf * dielectric_reflectance(c, eta) * compensation,
+                );
             }
             f
         } else {
@@ -320,7 +326,7 @@ impl MetallicRoughness {
                 * (1.0 - dielectric_reflectance(c_o, eta))
                 * (c_i * c_o / (wi.z * wo.z * denominator * denominator)).abs()
                 / (eta * eta); // radiance is compressed into the denser side, as in dielectric.rs
-            glass * btdf * self.base_color
+            glass * btdf * glass_energy_compensation(wo.z, self.alpha, eta) * self.base_color
         }
     }
 

@@ -15,6 +15,7 @@ pub mod bump_shadowing;
 pub(crate) mod chi_square;
 pub mod dielectric;
 pub mod ggx_albedo;
+pub mod ggx_glass_albedo;
 pub mod lambert;
 pub mod layered;
 pub mod metallic_roughness;

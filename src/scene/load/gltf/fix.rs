@@ -11,6 +11,7 @@
 //! chosen among its sources (`EXT_texture_webp`, the core `source`, `KHR_texture_basisu`).
 
 use super::check;
+use super::materials::bounds_a_volume;
 use crate::error::{Error, Result};
 use gltf::json::Value;
 use std::collections::BTreeMap;
@@ -255,7 +256,8 @@ fn warn_count(path: &Path, warnings: &mut Vec<String>, what: &str, n: usize, uni
 }
 
 /// The warnings about material features that are read only in part: occlusion maps, the
-/// textures of clearcoat and sheen, clearcoat over emission, volume thickness.
+/// textures of clearcoat and sheen, clearcoat over emission, thin-walled volumes' attenuation
+/// and volumes' thickness textures.
 fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings: &mut Vec<String>) {
     iridescence_checks(path, materials, warnings);
     let mut count = |what: &str, n: usize| warn_count(path, warnings, what, n, "material");
@@ -293,13 +295,29 @@ fn survey_material_features(path: &Path, materials: &[gltf::Material], warnings:
          applies everywhere",
         with_keys("KHR_materials_transmission", &["transmissionTexture"]),
     );
+    let volumes = || {
+        materials
+            .iter()
+            .filter_map(|m| m.extension_value("KHR_materials_volume"))
+    };
     count(
-        "KHR_materials_volume thickness (thicknessFactor, thicknessTexture) is ignored: the \
-         path tracer measures the distance travelled inside the object",
-        with_keys(
-            "KHR_materials_volume",
-            &["thicknessFactor", "thicknessTexture"],
-        ),
+        "KHR_materials_volume without thicknessFactor is thin-walled (the specification's \
+         default): its attenuation is not applied",
+        volumes()
+            .filter(|v| {
+                !bounds_a_volume(v)
+                    && v["attenuationColor"]
+                        .as_array()
+                        .is_some_and(|c| c.iter().any(|x| x.as_f64().is_some_and(|x| x < 1.0)))
+            })
+            .count(),
+    );
+    count(
+        "KHR_materials_volume thicknessTexture is ignored: the path tracer measures the \
+         distance travelled inside the object",
+        volumes()
+            .filter(|v| bounds_a_volume(v) && v.get("thicknessTexture").is_some())
+            .count(),
     );
 }
 

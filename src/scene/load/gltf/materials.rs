@@ -24,10 +24,17 @@ const DEFAULT_ROUGHNESS: f32 = 0.5;
 const DIELECTRIC_F0: f32 = 0.04;
 
 /// The absorbing medium of `KHR_materials_volume` (`attenuationColor`, default white, and
-/// `attenuationDistance`, default infinite); its `thickness` is not needed by a path tracer,
-/// which measures the path inside the object (`fix.rs` warns once).
+/// `attenuationDistance`, default infinite), only where the surface bounds a volume:
+/// `thicknessFactor` above 0. At its default 0 the material is thin-walled (the
+/// specification's rule, and Blender's importer adds no Volume Absorption then): light crosses
+/// the wall without travelling inside anything, so nothing is absorbed. The thickness itself
+/// is not needed by a path tracer, which measures the path inside the object (`fix.rs` warns
+/// once about thin-walled attenuation and about `thicknessTexture`).
 fn volume_of(m: &gltf::Material) -> Option<Volume> {
     let volume = m.extension_value("KHR_materials_volume")?;
+    if !bounds_a_volume(volume) {
+        return None;
+    }
     let channel = |i: usize| {
         let c = volume["attenuationColor"][i]
             .as_f64()
@@ -69,6 +76,14 @@ fn iridescence_of(m: &gltf::Material) -> Option<Iridescence> {
         thickness_maximum: thickness("iridescenceThicknessMaximum", default_maximum),
     };
     (iridescence.factor > 0.0).then_some(iridescence)
+}
+
+/// Whether a `KHR_materials_volume` object makes its surface a volume boundary:
+/// `thicknessFactor` (default 0, thin-walled) positive and finite.
+pub(super) fn bounds_a_volume(volume: &gltf::json::Value) -> bool {
+    volume["thicknessFactor"]
+        .as_f64()
+        .is_some_and(|t| t.is_finite() && t > 0.0)
 }
 
 /// How one glTF material appears in the world.
