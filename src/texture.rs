@@ -751,6 +751,11 @@ pub struct SurfaceTextures {
     pub sheen_color: TextureRef,
     /// Alpha multiplies the sheen's roughness.
     pub sheen_roughness: TextureRef,
+    /// Whether the material is anisotropic: its direction is turned into each hit's
+    /// shading frame (`KHR_materials_anisotropy`).
+    pub anisotropic: bool,
+    /// Red and green the anisotropy direction in tangent space, blue multiplies its strength.
+    pub anisotropy: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -762,7 +767,8 @@ impl SurfaceTextures {
             || self.normal.is_set()
             || self.specular.is_set()
             || self.specular_color.is_set()
-            || self.has_layer_textures())
+            || self.has_layer_textures()
+            || self.anisotropic)
     }
 
     /// Whether a clearcoat or sheen texture is set.

@@ -31,6 +31,11 @@
 //! (smooth glass itself stays [`super::Bsdf::Dielectric`]). Transmission refracts (a volume
 //! boundary, `+z` = outside), and `KHR_materials_specular` does not apply to it.
 //!
+//! `KHR_materials_anisotropy` ([`Anisotropy`]) makes every microfacet lobe (metal, specular
+//! layer, rough glass) anisotropic GGX ([`Ggx::Anisotropic`]); its energy compensation reads
+//! the albedo tables at the geometric mean of the two alphas, as Cycles does. Isotropic
+//! surfaces run the isotropic functions, unchanged.
+//!
 //! The diffuse lobe carries Blender's Bump Map Correction ([`BumpShadowing`]) where a normal
 //! map tilts the shading normal.
 //!
@@ -42,13 +47,13 @@
 //! is `eval * |cos| / pdf` (one-sample MIS over lobes).
 
 use super::BsdfSample;
+use super::anisotropy::Anisotropy;
 use super::bump_shadowing::BumpShadowing;
 use super::dielectric::{FresnelModel, fresnel};
 use super::ggx_albedo::{self, compensated_schlick_albedo, energy_compensation};
 use super::lambert;
 use super::microfacet::{
-    alpha_from_roughness, distribution, masking_shadowing, reflect_about, refract_about,
-    refraction_half_vector, sample_visible_normal, visible_normal_pdf,
+    Ggx, alpha_from_roughness, reflect_about, refract_about, refraction_half_vector,
 };
 use crate::math::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use crate::math::{Rgb, Vec2, Vec3A, luminance, max_component};
@@ -82,6 +87,8 @@ pub struct MetallicRoughness {
     /// Blender's Bump Map Correction on the diffuse lobe (none unless a normal map tilts the
     /// shading normal at this hit; set by [`super::Bsdf::with_bump_shadowing`]).
     pub bump: BumpShadowing,
+    /// `KHR_materials_anisotropy` ([`Anisotropy::NONE`]: isotropic).
+    pub anisotropy: Anisotropy,
 }
 
 impl Default for MetallicRoughness {
@@ -96,6 +103,7 @@ impl Default for MetallicRoughness {
             specular_color: Rgb::ONE,
             transmission: 0.0,
             bump: BumpShadowing::NONE,
+            anisotropy: Anisotropy::NONE,
         }
     }
 }
@@ -138,6 +146,12 @@ impl MetallicRoughness {
         self.base_color == Rgb::ZERO
             && self.transmission == 0.0
             && (self.metallic == 1.0 || self.specular == 0.0 || self.specular_color == Rgb::ZERO)
+    }
+
+    /// The GGX distribution of the microfacet lobes.
+    #[inline]
+    fn ggx(&self) -> Ggx {
+        self.anisotropy.ggx(self.alpha)
     }
 
     /// The dielectric's tinted normal-incidence reflectance (KHR_materials_specular).
@@ -238,27 +252,26 @@ impl MetallicRoughness {
             // --- Reflection: every part contributes.
             let h = (wo + wi).normalize();
             let c = wo.dot(h);
-            let specular_brdf = distribution(self.alpha, h) * masking_shadowing(self.alpha, wo, wi)
-                / (4.0 * wo.z * wi.z);
+            let ggx = self.ggx();
+            let alpha = ggx.equivalent_alpha(); // of the albedo tables
+            let specular_brdf =
+                ggx.distribution(h) * ggx.masking_shadowing(wo, wi) / (4.0 * wo.z * wi.z);
             let mut f = Rgb::ZERO;
             if metal > 0.0 {
-                let compensation = energy_compensation(
-                    ggx_albedo::schlick_average(self.base_color),
-                    wo.z,
-                    self.alpha,
-                );
+                let compensation =
+                    energy_compensation(ggx_albedo::schlick_average(self.base_color), wo.z, alpha);
                 f += metal * specular_brdf * schlick(self.base_color, c) * compensation;
             }
             if opaque > 0.0 {
                 // Blender's layering: the diffuse base gets what the compensated specular
                 // layer does not reflect of the light from wo (its directional albedo).
                 let f0 = self.dielectric_f0();
-                let layer = compensated_schlick_albedo(f0, wo.z, self.alpha);
+                let layer = compensated_schlick_albedo(f0, wo.z, alpha);
                 let base = (1.0 - self.specular * max_component(layer)).max(0.0)
                     * (FRAC_1_PI * bump)
                     * self.base_color;
                 let compensation =
-                    energy_compensation(ggx_albedo::schlick_average(f0), wo.z, self.alpha);
+                    energy_compensation(ggx_albedo::schlick_average(f0), wo.z, alpha);
                 let fr = schlick(f0, c);
                 f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
@@ -277,8 +290,9 @@ impl MetallicRoughness {
                 return Rgb::ZERO;
             }
             let denominator = c_i + c_o / eta;
-            let btdf = distribution(self.alpha, h)
-                * masking_shadowing(self.alpha, wo, wi)
+            let ggx = self.ggx();
+            let btdf = ggx.distribution(h)
+                * ggx.masking_shadowing(wo, wi)
                 * (1.0 - dielectric_reflectance(c_o, eta))
                 * (c_i * c_o / (wi.z * wo.z * denominator * denominator)).abs()
                 / (eta * eta); // radiance is compressed into the denser side, as in dielectric.rs
@@ -299,7 +313,7 @@ impl MetallicRoughness {
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             let c = wo.dot(h);
-            let microfacet = visible_normal_pdf(self.alpha, wo, h) / (4.0 * c);
+            let microfacet = self.ggx().visible_normal_pdf(wo, h) / (4.0 * c);
             p_diffuse * cosine_hemisphere_pdf(wi.z)
                 + (1.0 - p_diffuse) * self.reflect_probability(c, eta) * microfacet
         } else {
@@ -315,7 +329,7 @@ impl MetallicRoughness {
             let jacobian = c_i.abs() / (denominator * denominator);
             (1.0 - p_diffuse)
                 * (1.0 - self.reflect_probability(c_o, eta))
-                * visible_normal_pdf(self.alpha, wo, h)
+                * self.ggx().visible_normal_pdf(wo, h)
                 * jacobian
         }
     }
@@ -340,7 +354,7 @@ impl MetallicRoughness {
             sample_cosine_hemisphere(u)
         } else {
             let u_split = ((u_lobe - p_diffuse) / (1.0 - p_diffuse)).min(1.0);
-            let h = sample_visible_normal(self.alpha, wo_up, u);
+            let h = self.ggx().sample_visible_normal(wo_up, u);
             let c = wo_up.dot(h);
             if c <= 0.0 {
                 return None;

@@ -3,15 +3,17 @@
 //! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness};
+use crate::bsdf::{Anisotropy, Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use crate::scene::{Material, MaterialTextures, TextureSlot, Volume};
 use crate::texture::{Mipmapped, SurfaceTextures, Texture, TextureRef};
 use std::sync::Arc;
 
 /// The render-side scattering model of a scene material; `mr_textured` says whether a
-/// metallic-roughness texture varies it (which rules out the mirror special case).
-pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
+/// metallic-roughness texture varies it (which rules out the mirror special case), and
+/// `anisotropy` is its `KHR_materials_anisotropy` (which rules out both smooth special
+/// cases: it roughens them along its direction).
+pub(super) fn bsdf_of(m: &Material, mr_textured: bool, anisotropy: Anisotropy) -> Bsdf {
     match *m {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
@@ -39,6 +41,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                 specular_color,
                 transmission,
                 bump: BumpShadowing::NONE,
+                anisotropy,
             };
             let layered = Layered {
                 base,
@@ -50,7 +53,8 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
             if layered.has_layers() {
                 return Bsdf::layered(layered);
             }
-            if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
+            let smooth = roughness == 0.0 && anisotropy.is_none();
+            if transmission == 1.0 && metallic == 0.0 && smooth {
                 // Smooth clear glass stays the exact delta dielectric.
                 return Bsdf::Dielectric {
                     ior,
@@ -58,7 +62,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool) -> Bsdf {
                     tint: base_color,
                 };
             }
-            if metallic == 1.0 && roughness == 0.0 && !mr_textured {
+            if metallic == 1.0 && smooth && !mr_textured {
                 // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
                 // metal, Schlick's brightening toward grazing angles is left out).
                 return Bsdf::Mirror { tint: base_color };
@@ -88,7 +92,15 @@ impl MaterialTable {
         volume: Option<&Volume>,
     ) -> u32 {
         let surface = self.interner.surface(textures);
-        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set());
+        let anisotropy =
+            textures
+                .and_then(|t| t.anisotropy.as_ref())
+                .map_or(Anisotropy::NONE, |a| Anisotropy {
+                    strength: a.strength,
+                    mapping: a.mapping,
+                    direction: Vec2::new(a.rotation.cos(), a.rotation.sin()),
+                });
+        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set(), anisotropy);
         let absorption = volume.map_or(Rgb::ZERO, |v| v.absorption);
         let key = (bsdf, surface, absorption);
         let found = self.materials.iter().position(|b| *b == key);
@@ -168,6 +180,8 @@ impl TextureInterner {
             clearcoat_roughness: self.intern(t.clearcoat_roughness.as_ref()),
             sheen_color: self.intern(t.sheen_color.as_ref()),
             sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
+            anisotropic: t.anisotropy.as_ref().is_some_and(|a| a.strength > 0.0),
+            anisotropy: self.intern(t.anisotropy.as_ref().and_then(|a| a.texture.as_ref())),
         }
     }
 }
