@@ -346,7 +346,9 @@ fn material_textures(
 
 /// `KHR_materials_anisotropy`: strength (clamped to [0, 1]; `fix.rs` warns), rotation and
 /// texture, which must read the material's UV set (else it is ignored with a warning, as
-/// other textures are) and sets it if no other texture does. `None` without the extension.
+/// other textures are) and sets it if no other texture does. Without any texture the set is
+/// `TEXCOORD_0`, whose coordinates give the tangent frame where the file has no `TANGENT`.
+/// `None` without the extension.
 fn anisotropy_of(
     m: &gltf::Material,
     textures: &TextureTable,
@@ -374,6 +376,7 @@ fn anisotropy_of(
         *uv_set = Some(set);
         Some(slot)
     });
+    uv_set.get_or_insert(0);
     Some(MaterialAnisotropy {
         strength: unit(extension_number(
             m,
