@@ -759,6 +759,11 @@ pub struct SurfaceTextures {
     pub iridescence: TextureRef,
     /// Green mixes the thin film's thickness from its minimum to its maximum.
     pub iridescence_thickness: TextureRef,
+    /// Whether the material is anisotropic: its direction is turned into each hit's
+    /// shading frame (`KHR_materials_anisotropy`).
+    pub anisotropic: bool,
+    /// Red and green the anisotropy direction in tangent space, blue multiplies its strength.
+    pub anisotropy: TextureRef,
 }
 
 impl SurfaceTextures {
@@ -772,7 +777,8 @@ impl SurfaceTextures {
             || self.specular.is_set()
             || self.specular_color.is_set()
             || self.has_layer_textures()
-            || self.has_film_textures())
+            || self.has_film_textures()
+            || self.anisotropic)
     }
 
     /// Whether a thin-film (iridescence) texture is set.

@@ -33,6 +33,11 @@
 //! (smooth glass itself stays [`super::Bsdf::Dielectric`]). Transmission refracts (a volume
 //! boundary, `+z` = outside), and `KHR_materials_specular` does not apply to it.
 //!
+//! `KHR_materials_anisotropy` ([`Anisotropy`]) makes every microfacet lobe (metal, specular
+//! layer, rough glass) anisotropic GGX ([`Ggx::Anisotropic`]); its energy compensation reads
+//! the albedo tables at the geometric mean of the two alphas, as Cycles does. Isotropic
+//! surfaces run the isotropic functions, unchanged.
+//!
 //! The diffuse lobe carries Blender's Bump Map Correction ([`BumpShadowing`]) where a normal
 //! map tilts the shading normal.
 //!
@@ -51,14 +56,14 @@
 //! is `eval * |cos| / pdf` (one-sample MIS over lobes).
 
 use super::BsdfSample;
+use super::anisotropy::Anisotropy;
 use super::bump_shadowing::BumpShadowing;
 use super::dielectric::{FresnelModel, fresnel};
 use super::ggx_albedo::{self, compensated_schlick_albedo, energy_compensation};
 use super::ggx_glass_albedo::glass_energy_compensation;
 use super::lambert;
 use super::microfacet::{
-    alpha_from_roughness, distribution, masking_shadowing, reflect_about, refract_about,
-    refraction_half_vector, sample_visible_normal, visible_normal_pdf,
+    Ggx, alpha_from_roughness, reflect_about, refract_about, refraction_half_vector,
 };
 use super::thin_film::ThinFilm;
 use crate::math::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
@@ -97,6 +102,8 @@ pub struct MetallicRoughness {
     /// dielectric's Fresnel terms ([`ThinFilm::NONE`]: none, and exactly the code path of a
     /// surface without it).
     pub film: ThinFilm,
+    /// `KHR_materials_anisotropy` ([`Anisotropy::NONE`]: isotropic).
+    pub anisotropy: Anisotropy,
 }
 
 impl Default for MetallicRoughness {
@@ -112,6 +119,7 @@ impl Default for MetallicRoughness {
             transmission: 0.0,
             bump: BumpShadowing::NONE,
             film: ThinFilm::NONE,
+            anisotropy: Anisotropy::NONE,
         }
     }
 }
@@ -154,6 +162,12 @@ impl MetallicRoughness {
         self.base_color == Rgb::ZERO
             && self.transmission == 0.0
             && (self.metallic == 1.0 || self.specular == 0.0 || self.specular_color == Rgb::ZERO)
+    }
+
+    /// The GGX distribution of the microfacet lobes.
+    #[inline]
+    fn ggx(&self) -> Ggx {
+        self.anisotropy.ggx(self.alpha)
     }
 
     /// The dielectric's tinted normal-incidence reflectance (KHR_materials_specular).
@@ -248,8 +262,9 @@ impl MetallicRoughness {
     #[inline(never)]
     fn film_layer_albedo(&self, plain: Rgb, f0: Rgb, mu: f32) -> Rgb {
         let fresnel = self.film.over_dielectric(Rgb::ZERO, f0, self.ior, mu);
-        let lobe = ggx_albedo::albedo(mu, self.alpha)
-            * energy_compensation(ggx_albedo::schlick_average(f0), mu, self.alpha);
+        let alpha = self.ggx().equivalent_alpha(); // of the albedo tables
+        let lobe = ggx_albedo::albedo(mu, alpha)
+            * energy_compensation(ggx_albedo::schlick_average(f0), mu, alpha);
         // over_dielectric blended the film with zero: add the plain share back.
         fresnel * lobe + plain * (1.0 - self.film.factor)
     }
@@ -269,15 +284,14 @@ impl MetallicRoughness {
             // --- Reflection: every part contributes.
             let h = (wo + wi).normalize();
             let c = wo.dot(h);
-            let specular_brdf = distribution(self.alpha, h) * masking_shadowing(self.alpha, wo, wi)
-                / (4.0 * wo.z * wi.z);
+            let ggx = self.ggx();
+            let alpha = ggx.equivalent_alpha(); // of the albedo tables
+            let specular_brdf =
+                ggx.distribution(h) * ggx.masking_shadowing(wo, wi) / (4.0 * wo.z * wi.z);
             let mut f = Rgb::ZERO;
             if metal > 0.0 {
-                let compensation = energy_compensation(
-                    ggx_albedo::schlick_average(self.base_color),
-                    wo.z,
-                    self.alpha,
-                );
+                let compensation =
+                    energy_compensation(ggx_albedo::schlick_average(self.base_color), wo.z, alpha);
                 let mut fresnel = schlick(self.base_color, c);
                 if self.film.is_present() {
                     fresnel = self.film.over_conductor(fresnel, self.base_color, c);
@@ -288,7 +302,7 @@ impl MetallicRoughness {
                 // Blender's layering: the diffuse base gets what the compensated specular
                 // layer does not reflect of the light from wo (its directional albedo).
                 let f0 = self.dielectric_f0();
-                let mut layer = compensated_schlick_albedo(f0, wo.z, self.alpha);
+                let mut layer = compensated_schlick_albedo(f0, wo.z, alpha);
                 if self.film.is_present() {
                     layer = self.film_layer_albedo(layer, f0, wo.z);
                 }
@@ -296,7 +310,7 @@ impl MetallicRoughness {
                     * (FRAC_1_PI * bump)
                     * self.base_color;
                 let compensation =
-                    energy_compensation(ggx_albedo::schlick_average(f0), wo.z, self.alpha);
+                    energy_compensation(ggx_albedo::schlick_average(f0), wo.z, alpha);
                 let mut fr = schlick(f0, c);
                 if self.film.is_present() {
                     fr = self.film.over_dielectric(fr, f0, self.ior, c);
@@ -304,7 +318,7 @@ impl MetallicRoughness {
                 f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
             if glass > 0.0 {
-                let compensation = glass_energy_compensation(wo.z, self.alpha, eta);
+                let compensation = glass_energy_compensation(wo.z, alpha, eta);
                 f += Rgb::splat(
                     glass * specular_brdf * dielectric_reflectance(c, eta) * compensation,
                 );
@@ -321,12 +335,14 @@ impl MetallicRoughness {
                 return Rgb::ZERO;
             }
             let denominator = c_i + c_o / eta;
-            let btdf = distribution(self.alpha, h)
-                * masking_shadowing(self.alpha, wo, wi)
+            let ggx = self.ggx();
+            let btdf = ggx.distribution(h)
+                * ggx.masking_shadowing(wo, wi)
                 * (1.0 - dielectric_reflectance(c_o, eta))
                 * (c_i * c_o / (wi.z * wo.z * denominator * denominator)).abs()
                 / (eta * eta); // radiance is compressed into the denser side, as in dielectric.rs
-            glass * btdf * glass_energy_compensation(wo.z, self.alpha, eta) * self.base_color
+            let alpha = ggx.equivalent_alpha(); // of the albedo tables
+            glass * btdf * glass_energy_compensation(wo.z, alpha, eta) * self.base_color
         }
     }
 
@@ -343,7 +359,7 @@ impl MetallicRoughness {
         if wi.z > 0.0 {
             let h = (wo + wi).normalize();
             let c = wo.dot(h);
-            let microfacet = visible_normal_pdf(self.alpha, wo, h) / (4.0 * c);
+            let microfacet = self.ggx().visible_normal_pdf(wo, h) / (4.0 * c);
             p_diffuse * cosine_hemisphere_pdf(wi.z)
                 + (1.0 - p_diffuse) * self.reflect_probability(c, eta) * microfacet
         } else {
@@ -359,7 +375,7 @@ impl MetallicRoughness {
             let jacobian = c_i.abs() / (denominator * denominator);
             (1.0 - p_diffuse)
                 * (1.0 - self.reflect_probability(c_o, eta))
-                * visible_normal_pdf(self.alpha, wo, h)
+                * self.ggx().visible_normal_pdf(wo, h)
                 * jacobian
         }
     }
@@ -384,7 +400,7 @@ impl MetallicRoughness {
             sample_cosine_hemisphere(u)
         } else {
             let u_split = ((u_lobe - p_diffuse) / (1.0 - p_diffuse)).min(1.0);
-            let h = sample_visible_normal(self.alpha, wo_up, u);
+            let h = self.ggx().sample_visible_normal(wo_up, u);
             let c = wo_up.dot(h);
             if c <= 0.0 {
                 return None;

@@ -3,8 +3,11 @@
 //! (the spherical-cap construction of Dupuy & Benyoub 2023, which gives the same density as
 //! Heitz 2018 with fewer operations) with its density.
 //!
-//! Everything is isotropic and in the local frame (`+z` = macro normal). Directions are on the
-//! upper side: callers flip to `wo`'s side first. Microfacet normals `h` have `h.z > 0`.
+//! The free functions are isotropic; [`Ggx`] is the distribution a lobe uses, isotropic (those
+//! functions, unchanged) or anisotropic (`KHR_materials_anisotropy`: alpha along a tangent
+//! direction and along the bitangent, the same formulas with the roughness stretched per axis).
+//! Everything is in the local frame (`+z` = macro normal). Directions are on the upper side:
+//! callers flip to `wo`'s side first. Microfacet normals `h` have `h.z > 0`.
 
 use crate::math::{Vec2, Vec3A};
 use std::f32::consts::{PI, TAU};
@@ -77,6 +80,127 @@ pub fn visible_normal_pdf(alpha: f32, wo: Vec3A, h: Vec3A) -> f32 {
         return 0.0;
     }
     masking(alpha, wo) * wo.dot(h).max(0.0) * distribution(alpha, h) / wo.z
+}
+
+/// The GGX distribution of one lobe: one alpha (the free functions above), or an alpha along
+/// a tangent direction and another along the bitangent. The choice is the material's, made
+/// once where its parameters are set; isotropic lobes run exactly the isotropic functions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ggx {
+    /// The same alpha in every direction.
+    Isotropic(f32),
+    /// `alpha.x` along `tangent`, `alpha.y` along the bitangent (`+z` x tangent).
+    Anisotropic {
+        /// Alpha along the tangent and along the bitangent.
+        alpha: Vec2,
+        /// The tangent in the local frame: unit `(cos, sin)` of its angle from `+x`.
+        tangent: Vec2,
+    },
+}
+
+impl Ggx {
+    /// `w` in the anisotropic lobe's own frame (`+x` along the tangent).
+    #[inline]
+    fn to_tangent_frame(tangent: Vec2, w: Vec3A) -> Vec3A {
+        Vec3A::new(
+            tangent.x * w.x + tangent.y * w.y,
+            tangent.x * w.y - tangent.y * w.x,
+            w.z,
+        )
+    }
+
+    /// Normal distribution D(h) (projected area density, as [`distribution`]).
+    #[inline]
+    pub fn distribution(self, h: Vec3A) -> f32 {
+        match self {
+            Ggx::Isotropic(alpha) => distribution(alpha, h),
+            Ggx::Anisotropic { alpha, tangent } => {
+                if h.z <= 0.0 {
+                    return 0.0;
+                }
+                let h = Self::to_tangent_frame(tangent, h);
+                let (x, y) = (h.x / alpha.x, h.y / alpha.y);
+                let denominator = x * x + y * y + h.z * h.z;
+                1.0 / (PI * alpha.x * alpha.y * denominator * denominator)
+            }
+        }
+    }
+
+    /// Smith's Lambda(w): the projected roughness toward `w` replaces the single alpha.
+    #[inline]
+    pub fn lambda(self, w: Vec3A) -> f32 {
+        match self {
+            Ggx::Isotropic(alpha) => lambda(alpha, w),
+            Ggx::Anisotropic { alpha, tangent } => {
+                let cos2 = w.z * w.z;
+                if cos2 == 0.0 {
+                    return f32::INFINITY;
+                }
+                let w = Self::to_tangent_frame(tangent, w);
+                let (x, y) = (w.x * alpha.x, w.y * alpha.y);
+                0.5 * ((1.0 + (x * x + y * y) / cos2).sqrt() - 1.0)
+            }
+        }
+    }
+
+    /// Height-correlated Smith masking-shadowing G2(wo, wi).
+    #[inline]
+    pub fn masking_shadowing(self, wo: Vec3A, wi: Vec3A) -> f32 {
+        match self {
+            Ggx::Isotropic(alpha) => masking_shadowing(alpha, wo, wi),
+            _ => 1.0 / (1.0 + self.lambda(wo) + self.lambda(wi)),
+        }
+    }
+
+    /// Samples a microfacet normal visible from `wo` ([`sample_visible_normal`], stretched
+    /// by each axis's alpha in the tangent frame).
+    #[inline]
+    pub fn sample_visible_normal(self, wo: Vec3A, u: Vec2) -> Vec3A {
+        match self {
+            Ggx::Isotropic(alpha) => sample_visible_normal(alpha, wo, u),
+            Ggx::Anisotropic { alpha, tangent } => {
+                let w = Self::to_tangent_frame(tangent, wo);
+                let wo_std = Vec3A::new(w.x * alpha.x, w.y * alpha.y, w.z).normalize();
+                let phi = TAU * u.x;
+                let z = (1.0 - u.y) * (1.0 + wo_std.z) - wo_std.z;
+                let sin_theta = (1.0 - z * z).max(0.0).sqrt();
+                let cap = Vec3A::new(sin_theta * phi.cos(), sin_theta * phi.sin(), z);
+                let h_std = cap + wo_std;
+                let h = Vec3A::new(h_std.x * alpha.x, h_std.y * alpha.y, h_std.z.max(0.0))
+                    .normalize_or(Vec3A::Z);
+                // Back to the local frame: the inverse rotation.
+                Vec3A::new(
+                    tangent.x * h.x - tangent.y * h.y,
+                    tangent.y * h.x + tangent.x * h.y,
+                    h.z,
+                )
+            }
+        }
+    }
+
+    /// Density of [`Ggx::sample_visible_normal`]: G1(wo) max(0, wo.h) D(h) / wo.z.
+    #[inline]
+    pub fn visible_normal_pdf(self, wo: Vec3A, h: Vec3A) -> f32 {
+        match self {
+            Ggx::Isotropic(alpha) => visible_normal_pdf(alpha, wo, h),
+            _ => {
+                if wo.z <= 0.0 {
+                    return 0.0;
+                }
+                wo.dot(h).max(0.0) * self.distribution(h) / ((1.0 + self.lambda(wo)) * wo.z)
+            }
+        }
+    }
+
+    /// The single alpha whose albedo table stands for this lobe in the energy compensation:
+    /// the geometric mean `sqrt(alpha_x alpha_y)` for an anisotropic lobe, as Cycles' does.
+    #[inline]
+    pub fn equivalent_alpha(self) -> f32 {
+        match self {
+            Ggx::Isotropic(alpha) => alpha,
+            Ggx::Anisotropic { alpha, .. } => (alpha.x * alpha.y).sqrt(),
+        }
+    }
 }
 
 /// Reflects `wo` about the microfacet normal `h`.

@@ -10,6 +10,7 @@
 //! - `eta` is the relative index of refraction across an interface, transmitted over
 //!   incident side.
 
+pub mod anisotropy;
 pub mod bump_shadowing;
 #[cfg(test)]
 pub(crate) mod chi_square;
@@ -24,6 +25,7 @@ pub mod mirror;
 pub mod sheen;
 pub mod thin_film;
 
+pub use anisotropy::{Anisotropy, AnisotropyMapping};
 pub use bump_shadowing::BumpShadowing;
 pub use dielectric::FresnelModel;
 pub use layered::Layered;
@@ -296,6 +298,28 @@ impl Bsdf {
             }),
             other => other,
         }
+    }
+
+    /// The anisotropy of its metallic-roughness parameters, if it has any
+    /// ([`Bsdf::MetallicRoughness`] or the base of [`Bsdf::Layered`]).
+    #[inline]
+    pub fn anisotropy(&self) -> Option<Anisotropy> {
+        let anisotropy = match self {
+            Bsdf::MetallicRoughness(params) => params.anisotropy,
+            Bsdf::Layered(layered) => layered.base.anisotropy,
+            _ => return None,
+        };
+        (!anisotropy.is_none()).then_some(anisotropy)
+    }
+
+    /// The same model with `anisotropy` on its metallic-roughness parameters (the shade
+    /// stage's, turned into a hit's shading frame).
+    #[inline]
+    pub fn with_anisotropy(self, anisotropy: Anisotropy) -> Bsdf {
+        self.with_base(|params| MetallicRoughness {
+            anisotropy,
+            ..params
+        })
     }
 
     /// The same model with its clearcoat, the coat's roughness, sheen colour and sheen

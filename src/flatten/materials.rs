@@ -3,7 +3,9 @@
 //! and tangents for normal maps. Lookups happen in `wavefront::surface`.
 
 use crate::bsdf::microfacet::alpha_from_roughness;
-use crate::bsdf::{Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness, ThinFilm};
+use crate::bsdf::{
+    Anisotropy, Bsdf, BumpShadowing, FresnelModel, Layered, MetallicRoughness, ThinFilm,
+};
 use crate::math::{Rgb, Vec2, Vec3A, Vec4};
 use crate::scene::{Iridescence, Material, MaterialTextures, TextureSlot, Volume};
 use crate::texture::{Mipmapped, SurfaceTextures, Texture, TextureRef};
@@ -24,8 +26,15 @@ fn thin_film_of(iridescence: Option<&Iridescence>) -> ThinFilm {
 
 /// The render-side scattering model of a scene material; `mr_textured` says whether a
 /// metallic-roughness texture varies it (which rules out the mirror special case), `film` is
-/// its thin film (which rules out the mirror too: the film colours the metal's reflection).
-pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
+/// its thin film (which rules out the mirror too: the film colours the metal's reflection),
+/// and `anisotropy` is its `KHR_materials_anisotropy` (which rules out both smooth special
+/// cases: it roughens them along its direction).
+pub(super) fn bsdf_of(
+    m: &Material,
+    mr_textured: bool,
+    film: ThinFilm,
+    anisotropy: Anisotropy,
+) -> Bsdf {
     match *m {
         Material::Lambertian { albedo } => Bsdf::Lambertian { albedo },
         Material::Mirror { tint } => Bsdf::Mirror { tint },
@@ -54,6 +63,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
                 transmission,
                 bump: BumpShadowing::NONE,
                 film,
+                anisotropy,
             };
             let layered = Layered {
                 base,
@@ -66,7 +76,8 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
             if layered.has_layers() {
                 return Bsdf::layered(layered);
             }
-            if transmission == 1.0 && metallic == 0.0 && roughness == 0.0 {
+            let smooth = roughness == 0.0 && anisotropy.is_none();
+            if transmission == 1.0 && metallic == 0.0 && smooth {
                 // Smooth clear glass stays the exact delta dielectric.
                 return Bsdf::Dielectric {
                     ior,
@@ -74,7 +85,7 @@ pub(super) fn bsdf_of(m: &Material, mr_textured: bool, film: ThinFilm) -> Bsdf {
                     tint: base_color,
                 };
             }
-            if metallic == 1.0 && roughness == 0.0 && !mr_textured && !film.is_present() {
+            if metallic == 1.0 && smooth && !mr_textured && !film.is_present() {
                 // A smooth metal is the perfect mirror (the alpha -> 0 limit; for a coloured
                 // metal, Schlick's brightening toward grazing angles is left out).
                 return Bsdf::Mirror { tint: base_color };
@@ -106,7 +117,15 @@ impl MaterialTable {
     ) -> u32 {
         let surface = self.interner.surface(textures);
         let film = thin_film_of(iridescence);
-        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set(), film);
+        let anisotropy =
+            textures
+                .and_then(|t| t.anisotropy.as_ref())
+                .map_or(Anisotropy::NONE, |a| Anisotropy {
+                    strength: a.strength,
+                    mapping: a.mapping,
+                    direction: Vec2::new(a.rotation.cos(), a.rotation.sin()),
+                });
+        let bsdf = bsdf_of(m, surface.metallic_roughness.is_set(), film, anisotropy);
         let absorption = volume.map_or(Rgb::ZERO, |v| v.absorption);
         let key = (bsdf, surface, absorption);
         let found = self.materials.iter().position(|b| *b == key);
@@ -190,6 +209,8 @@ impl TextureInterner {
             sheen_roughness: self.intern(t.sheen_roughness.as_ref()),
             iridescence: self.intern(t.iridescence.as_ref()),
             iridescence_thickness: self.intern(t.iridescence_thickness.as_ref()),
+            anisotropic: t.anisotropy.as_ref().is_some_and(|a| a.strength > 0.0),
+            anisotropy: self.intern(t.anisotropy.as_ref().and_then(|a| a.texture.as_ref())),
         }
     }
 }

@@ -32,6 +32,8 @@ pub(super) fn flatten_meshes<'w>(
     instanced: &HashSet<*const Mesh>,
 ) -> Result<Vec<InstanceRequest>> {
     let mut requests = Vec::new();
+    // Anisotropic meshes without texture coordinates or tangents: (count, first name).
+    let mut frameless: (usize, Option<String>) = (0, None);
     let Primitives {
         groups,
         sources,
@@ -72,6 +74,16 @@ pub(super) fn flatten_meshes<'w>(
         let name = name.map_or("unnamed mesh", |n| n.0.as_str());
         let transform = transform.copied().unwrap_or_default().0;
         let material = materials.index(material, textures, volume, iridescence);
+        // No tangent frame for an anisotropic material: its tangents stay zero, which the
+        // shade stage renders isotropic (a generated frame would point anywhere).
+        let no_frame = textures.is_some_and(|t| t.anisotropy.is_some() && !t.is_normal_mapped())
+            && mesh.uvs.is_empty()
+            && tangents.is_none();
+        if no_frame {
+            frameless.0 += 1;
+            frameless.1.get_or_insert_with(|| name.to_string());
+        }
+        let needs_tangents = textures.is_some_and(|t| t.needs_tangents()) && !no_frame;
         let mut emitter = validate_emitter(emitter, path, name)?;
         if let Some(shared) = shared
             && instanced.contains(&Arc::as_ptr(&shared.0))
@@ -83,7 +95,7 @@ pub(super) fn flatten_meshes<'w>(
                 entity,
                 world_from_object: transform,
                 material,
-                normal_mapped: textures.is_some_and(MaterialTextures::is_normal_mapped),
+                normal_mapped: needs_tangents,
             });
             continue;
         }
@@ -94,7 +106,7 @@ pub(super) fn flatten_meshes<'w>(
         if emission_texture.is_some_and(|(_, mean)| mean == Rgb::ZERO) {
             emitter = None; // a black emission texture: nothing is emitted
         }
-        let tangents = textures.filter(|t| t.is_normal_mapped()).map(|_| tangents);
+        let tangents = needs_tangents.then_some(tangents);
         // An emitter's coverage also weighs its light samples (`flatten/lights.rs`).
         let alpha = match alpha {
             Some(coverage) => {
@@ -139,6 +151,17 @@ pub(super) fn flatten_meshes<'w>(
                 "mesh '{name}': skipped {skipped} degenerate (zero-area){kind} triangles"
             ));
         }
+    }
+    if let (n, Some(first)) = frameless {
+        let others = if n > 1 {
+            format!(" and {} more", n - 1)
+        } else {
+            String::new()
+        };
+        warnings.push(format!(
+            "mesh '{first}'{others}: anisotropic material (KHR_materials_anisotropy) without \
+             texture coordinates or tangents, so without a tangent frame: rendered isotropic"
+        ));
     }
     Ok(requests)
 }

@@ -374,7 +374,7 @@ impl Attributes {
         let normal_mapped = world
             .query::<&MaterialTextures>()
             .iter()
-            .any(|t| t.is_normal_mapped());
+            .any(|t| t.needs_tangents());
         Attributes {
             normals: any_mesh(world, |m| !m.normals.is_empty()),
             uvs: any_mesh(world, |m| !m.uvs.is_empty()),

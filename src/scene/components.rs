@@ -194,6 +194,24 @@ pub struct MaterialTextures {
     /// `iridescenceThicknessTexture`: green (linear) mixes the thickness from the minimum (0)
     /// to the maximum (1).
     pub iridescence_thickness: Option<TextureSlot>,
+    /// `KHR_materials_anisotropy` of [`Material::MetallicRoughness`]: kept with the textures
+    /// because, textured or not, it varies over the mesh with the tangent frame.
+    pub anisotropy: Option<MaterialAnisotropy>,
+}
+
+/// `KHR_materials_anisotropy`: a metallic-roughness material rougher along a direction of
+/// the mesh's tangent frame (`bsdf::anisotropy` has the formulas).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialAnisotropy {
+    /// `anisotropyStrength` in [0, 1].
+    pub strength: f32,
+    /// `anisotropyRotation`: radians from the tangent toward the bitangent.
+    pub rotation: f32,
+    /// The glTF specification's alphas or Cycles' (Blender's files).
+    pub mapping: crate::bsdf::AnisotropyMapping,
+    /// `anisotropyTexture` (linear): red and green the direction in tangent space
+    /// (`2 c - 1`, then rotated by `rotation`), blue multiplies the strength.
+    pub texture: Option<TextureSlot>,
 }
 
 impl MaterialTextures {
@@ -217,6 +235,12 @@ impl MaterialTextures {
             && self.sheen_roughness.is_none()
             && self.iridescence.is_none()
             && self.iridescence_thickness.is_none()
+            && self.anisotropy.is_none()
+    }
+
+    /// Whether shading reads the mesh's tangent frame (a normal map or anisotropy).
+    pub fn needs_tangents(&self) -> bool {
+        self.is_normal_mapped() || self.anisotropy.is_some()
     }
 }
 

@@ -12,7 +12,8 @@ pub mod load;
 pub use animation::AnimationChoice;
 pub use components::{
     AlphaCoverage, AlphaMode, Camera, Emitter, EnvironmentLight, EnvironmentSource, FresnelModel,
-    Iridescence, Material, MaterialTextures, Mesh, Name, Projection, PunctualLight, SharedMesh,
-    Sphere, SpotFalloff, TextureSlot, Transform, VertexColors, VertexTangents, Volume, mesh_of,
+    Iridescence, Material, MaterialAnisotropy, MaterialTextures, Mesh, Name, Projection,
+    PunctualLight, SharedMesh, Sphere, SpotFalloff, TextureSlot, Transform, VertexColors,
+    VertexTangents, Volume, mesh_of,
 };
 pub use load::{Scene, load_scene, load_scene_str};

@@ -4,9 +4,10 @@
 //! emits, both where a ray hits it and where a shadow ray samples it. Plain functions over the
 //! render scene; nothing allocates.
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Anisotropy, Bsdf};
 use crate::geometry::Shape;
 use crate::lights::{LightPoints, LightSamples};
+use crate::math::frame::Frame;
 use crate::math::{Rgb, Vec2, Vec3, Vec3A, Vec4};
 use crate::ray_cone::log2_uv_footprint;
 use crate::render_scene::RenderScene;
@@ -154,7 +155,57 @@ pub(super) fn textured_surface_in_cone(
         let coat = mapped_normal(scene, map, slot, b, (uv, footprint), ng, ns, wo);
         bsdf = bsdf.with_coat_normal(coat, shading);
     }
+    if textures.anisotropic {
+        bsdf = anisotropy_oriented(scene, textures, slot, b, (uv, footprint), shading, bsdf);
+    }
     (bsdf, shading)
+}
+
+/// `bsdf` with its `KHR_materials_anisotropy` turned into the shading frame of this hit
+/// (the one `Frame::from_normal(ns)` makes, which the shade stage uses): the direction, in
+/// the tangent frame (tangent made orthogonal to `ns`, bitangent `cross(ns, tangent) * w`),
+/// is the material's rotation applied to the texture's red-green direction (or to the
+/// tangent), and the texture's blue multiplies the strength. Where the frame degenerates
+/// (zero or normal-parallel tangents, a zero texture direction) the hit is isotropic.
+#[inline(never)]
+fn anisotropy_oriented(
+    scene: &RenderScene,
+    textures: &SurfaceTextures,
+    slot: usize,
+    b: Vec2,
+    (uv, footprint): (Vec2, f32),
+    ns: Vec3A,
+    bsdf: Bsdf,
+) -> Bsdf {
+    let Some(anisotropy) = bsdf.anisotropy() else {
+        return bsdf;
+    };
+    let tangents: [Vec4; 3] = scene.vertex_tangents(slot);
+    let t = Vec3A::from(interpolate(tangents, b).truncate());
+    let tangent = (t - ns * ns.dot(t)).normalize_or_zero();
+    let handedness = if tangents[0].w < 0.0 { -1.0 } else { 1.0 };
+    let bitangent = ns.cross(tangent) * handedness;
+    let (mut direction, mut strength) = (anisotropy.direction, anisotropy.strength);
+    if textures.anisotropy.is_set() {
+        let c = lookup_filtered(scene, &textures.anisotropy, uv, footprint);
+        let d = Vec2::new(2.0 * c.x - 1.0, 2.0 * c.y - 1.0);
+        direction = Vec2::new(
+            direction.x * d.x - direction.y * d.y,
+            direction.y * d.x + direction.x * d.y,
+        );
+        strength *= c.z.clamp(0.0, 1.0);
+    }
+    let world = tangent * direction.x + bitangent * direction.y;
+    let frame = Frame::from_normal(ns);
+    let local = Vec2::new(world.dot(frame.s), world.dot(frame.t)).normalize_or_zero();
+    if local == Vec2::ZERO || strength <= 0.0 || !local.is_finite() {
+        return bsdf.with_anisotropy(Anisotropy::NONE);
+    }
+    bsdf.with_anisotropy(Anisotropy {
+        strength,
+        direction: local,
+        ..anisotropy
+    })
 }
 
 /// `bsdf` with its dielectric's specular strength and colour scaled by the

@@ -402,11 +402,20 @@ impl Buffer {
         self.accessors.len() - 1
     }
 
-    fn vec2s(&mut self, v: &[[f32; 2]]) -> usize {
+    pub(crate) fn vec2s(&mut self, v: &[[f32; 2]]) -> usize {
         let data: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         let view = self.view(&data);
         self.accessors.push(
             json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC2"}),
+        );
+        self.accessors.len() - 1
+    }
+
+    pub(crate) fn vec4s(&mut self, v: &[[f32; 4]]) -> usize {
+        let data: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&data);
+        self.accessors.push(
+            json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC4"}),
         );
         self.accessors.len() - 1
     }

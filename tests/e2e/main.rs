@@ -11,6 +11,7 @@
 mod adaptive;
 mod alpha;
 mod animation;
+mod anisotropy;
 mod caustics;
 mod cli;
 mod cli_errors;

@@ -213,6 +213,7 @@ pub(super) fn plural(n: usize) -> &'static str {
 pub(super) fn survey(path: &Path, document: &gltf::Document, warnings: &mut Vec<String>) {
     let materials: Vec<gltf::Material> = document.materials().collect();
     survey_material_features(path, &materials, warnings);
+    survey_anisotropy(path, &materials, warnings);
     let ignored = ignored_material_extensions(&materials);
     for (name, n) in &ignored {
         warn_count(
@@ -365,6 +366,32 @@ fn iridescence_checks(path: &Path, materials: &[gltf::Material], warnings: &mut 
 
 /// Material extensions wavetrace neither reads nor knows to be harmless, with the number of
 /// materials that use each.
+/// One warning for the materials whose `anisotropyStrength` lies outside [0, 1] (or is not
+/// a number): clamped (`gltf/materials.rs`), the first one named.
+fn survey_anisotropy(path: &Path, materials: &[gltf::Material], warnings: &mut Vec<String>) {
+    let out_of_range: Vec<&gltf::Material> = materials
+        .iter()
+        .filter(|m| {
+            m.extension_value("KHR_materials_anisotropy")
+                .and_then(|e| e.get("anisotropyStrength"))
+                .is_some_and(|s| !s.as_f64().is_some_and(|s| (0.0..=1.0).contains(&s)))
+        })
+        .collect();
+    if let Some(first) = out_of_range.first() {
+        let name = first.name().unwrap_or("unnamed");
+        warn_count(
+            path,
+            warnings,
+            &format!(
+                "KHR_materials_anisotropy anisotropyStrength outside [0, 1] is clamped \
+                 (material '{name}')"
+            ),
+            out_of_range.len(),
+            "material",
+        );
+    }
+}
+
 fn ignored_material_extensions(materials: &[gltf::Material]) -> BTreeMap<String, usize> {
     let handled = [
         "KHR_materials_clearcoat",
@@ -378,6 +405,7 @@ fn ignored_material_extensions(materials: &[gltf::Material]) -> BTreeMap<String,
         "KHR_materials_variants",
         "KHR_materials_volume",
         "KHR_materials_iridescence",
+        "KHR_materials_anisotropy",
     ];
     let mut ignored = BTreeMap::<String, usize>::new();
     for m in materials {

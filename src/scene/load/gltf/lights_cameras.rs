@@ -160,6 +160,22 @@ pub(super) fn spawn_light(
     ))))
 }
 
+/// Whether Blender's glTF exporter wrote the file (`asset.generator`).
+fn written_by_blender(document: &gltf::Document) -> bool {
+    let generator = document.as_json().asset.generator.as_deref();
+    generator.is_some_and(|g| g.starts_with("Khronos glTF Blender I/O"))
+}
+
+/// The anisotropy mapping of a file's materials: Cycles' for files Blender wrote (which
+/// Blender's importer renders with its Principled BSDF), else the glTF specification's.
+pub(super) fn anisotropy_mapping(document: &gltf::Document) -> crate::bsdf::AnisotropyMapping {
+    if written_by_blender(document) {
+        crate::bsdf::AnisotropyMapping::Cycles
+    } else {
+        crate::bsdf::AnisotropyMapping::Gltf
+    }
+}
+
 /// How a spot's intensity falls between its cones: glTF's falloff, or, in a file Blender's
 /// exporter wrote (`asset.generator` "Khronos glTF Blender I/O ..."), the Spot Blend that
 /// Blender's importer recovers, `1 - inner / outer` (the exporter writes

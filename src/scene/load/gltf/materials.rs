@@ -10,9 +10,11 @@ use super::textures::{
     TextureTable, coat_normal_texture_info, film_texture_infos, info_slot, layer_texture_infos,
     raw_info_slot, raw_uv_transform, spec_gloss_diffuse_texture, texture_slot,
 };
+use crate::bsdf::AnisotropyMapping;
 use crate::math::Rgb;
 use crate::scene::{
-    AlphaCoverage, AlphaMode, Emitter, Iridescence, Material, MaterialTextures, Volume,
+    AlphaCoverage, AlphaMode, Emitter, Iridescence, Material, MaterialAnisotropy, MaterialTextures,
+    Volume,
 };
 use crate::texture::Encoding;
 
@@ -131,14 +133,19 @@ impl ImportedMaterial {
 }
 
 /// docs/importing.md's mapping from a glTF PBR material to wavetrace's.
+///
+/// `mapping` is the anisotropy's: Cycles' for files Blender wrote, else glTF's.
 pub(super) fn import_material(
     m: &gltf::Material,
     textures: &TextureTable,
+    mapping: AnisotropyMapping,
     warnings: &mut Vec<String>,
 ) -> ImportedMaterial {
     let spec_gloss = m.extension_value("KHR_materials_pbrSpecularGlossiness");
     let (base, metallic, roughness) = base_metallic_roughness(m, spec_gloss);
-    let (textures, uv_set) = material_textures(m, spec_gloss, textures, warnings);
+    let (mut surface, mut uv_set) = material_textures(m, spec_gloss, textures, warnings);
+    surface.anisotropy = anisotropy_of(m, textures, mapping, &mut uv_set, warnings);
+    let textures = surface;
     let alpha = alpha_coverage(m);
     if m.extension_value("KHR_materials_unlit").is_some() {
         // Unlit: base colour, its texture, vertex colours and alpha only; everything about
@@ -398,8 +405,54 @@ fn material_textures(
         clearcoat_normal_scale: coat_normal
             .and_then(|info| info["scale"].as_f64())
             .map_or(1.0, |s| s as f32),
+        anisotropy: None,
     };
     (textures, uv_set)
+}
+
+/// `KHR_materials_anisotropy`: strength (clamped to [0, 1]; `fix.rs` warns), rotation and
+/// texture, which must read the material's UV set (else it is ignored with a warning, as
+/// other textures are) and sets it if no other texture does. Without any texture the set is
+/// `TEXCOORD_0`, whose coordinates give the tangent frame where the file has no `TANGENT`.
+/// `None` without the extension.
+fn anisotropy_of(
+    m: &gltf::Material,
+    textures: &TextureTable,
+    mapping: AnisotropyMapping,
+    uv_set: &mut Option<u32>,
+    warnings: &mut Vec<String>,
+) -> Option<MaterialAnisotropy> {
+    let extension = m.extension_value("KHR_materials_anisotropy")?;
+    let rotation = extension["anisotropyRotation"].as_f64().unwrap_or(0.0) as f32;
+    let texture = raw_info_slot(
+        textures,
+        extension.get("anisotropyTexture"),
+        Encoding::Linear,
+    )
+    .and_then(|(slot, set)| {
+        if uv_set.is_some_and(|s| s != set) {
+            warnings.push(format!(
+                "material '{}': the anisotropy texture reads TEXCOORD_{set} while another \
+                     reads TEXCOORD_{}; only one set is supported, the texture is ignored",
+                m.name().unwrap_or("unnamed"),
+                uv_set.unwrap_or(0)
+            ));
+            return None;
+        }
+        *uv_set = Some(set);
+        Some(slot)
+    });
+    uv_set.get_or_insert(0);
+    Some(MaterialAnisotropy {
+        strength: unit(extension_number(
+            m,
+            "KHR_materials_anisotropy",
+            "anisotropyStrength",
+        )),
+        rotation: if rotation.is_finite() { rotation } else { 0.0 },
+        mapping,
+        texture,
+    })
 }
 
 /// A number of a material extension (glTF's default 0 when absent; callers clamp it).

@@ -42,9 +42,10 @@ pub(super) fn load(path: &Path, up: UpAxis) -> Result<Scene> {
     fix::survey(path, &document, &mut warnings);
     let base = path.parent().unwrap_or(Path::new("."));
     let textures = textures::import_textures(&document, base, &buffers, path, &mut warnings);
+    let mapping = lights_cameras::anisotropy_mapping(&document);
     let materials: Vec<ImportedMaterial> = document
         .materials()
-        .map(|m| import_material(&m, &textures, &mut warnings))
+        .map(|m| import_material(&m, &textures, mapping, &mut warnings))
         .collect();
     let parts = nodes::Parts {
         path,

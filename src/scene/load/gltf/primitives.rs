@@ -112,9 +112,9 @@ fn check_component_types(
     material: &ImportedMaterial,
 ) -> std::result::Result<(), String> {
     let texture_set = material.uv_set;
-    let tangents = Some(&material.textures)
-        .filter(|t| t.is_normal_mapped())
-        .and_then(|_| primitive.get(&Semantic::Tangents));
+    let tangents = (material.textures.needs_tangents())
+        .then(|| primitive.get(&Semantic::Tangents))
+        .flatten();
     let attributes: [(Option<gltf::Accessor>, &str, Dimensions); 4] = [
         (
             primitive.get(&Semantic::Positions),
@@ -213,12 +213,13 @@ fn read_attributes(
         .and_then(|a| read_floats::<2>(&a, buffers))
         .map(|v| v.into_iter().map(Vec2::from).collect())
         .unwrap_or_default();
-    let tangents: Vec<Vec4> = match material.textures.is_normal_mapped() {
-        true => attribute(Semantic::Tangents)
+    let tangents: Vec<Vec4> = if material.textures.needs_tangents() {
+        attribute(Semantic::Tangents)
             .and_then(|a| read_floats::<4>(&a, buffers))
             .map(|v| v.into_iter().map(Vec4::from).collect())
-            .unwrap_or_default(),
-        false => Vec::new(),
+            .unwrap_or_default()
+    } else {
+        Vec::new()
     };
     Some(RawVertices {
         positions,

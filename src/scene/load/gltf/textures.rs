@@ -18,7 +18,7 @@ pub(super) type TextureTable = HashMap<(usize, Encoding), Arc<Texture>>;
 
 /// Every texture a material reads, with the encoding of its use: colour textures (base
 /// colour, emission, specular colour) are sRGB, data textures (metallic-roughness, normal,
-/// specular strength) linear.
+/// specular strength, anisotropy) linear.
 fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
     let mut uses = Vec::new();
     for m in document.materials() {
@@ -52,6 +52,10 @@ fn texture_uses(document: &gltf::Document) -> Vec<(usize, Encoding)> {
             if let Some(index) = info.and_then(|i| i["index"].as_u64()) {
                 uses.push((index as usize, encoding));
             }
+        }
+        let anisotropy = m.extension_value("KHR_materials_anisotropy");
+        if let Some(index) = anisotropy.and_then(|e| e["anisotropyTexture"]["index"].as_u64()) {
+            uses.push((index as usize, Encoding::Linear));
         }
     }
     uses.retain(|&(i, _)| i < document.textures().len());
