@@ -49,7 +49,7 @@ import zlib
 import bpy
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from blender_textures import compare, exr_luma  # noqa: E402
+from blender_textures import compare, exr_luma, render_cycles  # noqa: E402
 
 
 def png_bytes(width, height, texel):
@@ -302,29 +302,6 @@ def import_for_cycles(path, width, height):
     return scene
 
 
-def render_cycles(scene, path, samples):
-    """Unbiased Cycles (no adaptive sampling, denoising or clamps) with its default pixel
-    filter, Blackman-Harris of 1.5 pixels: wavetrace's default for model files."""
-    scene.render.engine = "CYCLES"
-    scene.cycles.device = "CPU"
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.max_bounces = 8
-    scene.cycles.seed = 1
-    scene.cycles.light_sampling_threshold = 0.0
-    scene.cycles.sample_clamp_direct = 0.0
-    scene.cycles.sample_clamp_indirect = 0.0
-    scene.cycles.filter_glossy = 0.0
-    scene.render.filter_size = 1.5
-    scene.render.resolution_percentage = 100
-    scene.view_settings.view_transform = "Standard"
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.image_settings.color_depth = "32"
-    scene.render.filepath = path
-    bpy.ops.render.render(write_still=True)
-
-
 def silhouettes(ours, cycles, threshold):
     """Pixels whose masks (luminance above `threshold`) disagree, and each mask's bounding box
     (x0, y0, x1, y1), rows from the top."""
@@ -387,7 +364,7 @@ def main():
         width, height = build(gltf_path)
         cyc = os.path.join(out, f"{name}-cycles.exr")
         if not os.path.exists(cyc):
-            render_cycles(import_for_cycles(gltf_path, width, height), cyc, args.samples)
+            render_cycles(import_for_cycles(gltf_path, width, height), cyc, args.samples, 1.5)
         ours = os.path.join(out, f"{name}-wavetrace.exr")
         subprocess.run(
             [exe, "render", gltf_path, "-o", ours, "--width", str(width), "--height",

@@ -198,7 +198,9 @@ def build_principled(out, size, settings, normal_strength=0.0, coat_normal=False
     return scene
 
 
-def render_cycles(scene, path, samples):
+def render_cycles(scene, path, samples, filter_size=0.01):
+    """Unbiased Cycles (no adaptive sampling, denoising or clamps); `filter_size` 0.01 is a
+    point filter, 1.5 Cycles' default Blackman-Harris (wavetrace's default for model files)."""
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = samples
@@ -211,7 +213,7 @@ def render_cycles(scene, path, samples):
     scene.cycles.sample_clamp_indirect = 0.0
     scene.cycles.filter_glossy = 0.0
     scene.render.resolution_percentage = 100
-    scene.render.filter_size = 0.01
+    scene.render.filter_size = filter_size
     scene.view_settings.view_transform = "Standard"
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"

@@ -318,7 +318,7 @@ impl MetallicRoughness {
                 f += opaque * (base + self.specular * specular_brdf * fr * compensation);
             }
             if glass > 0.0 {
-                let compensation = glass_energy_compensation(wo.z, alpha, eta);
+                let compensation = glass_energy_compensation(wo.z, ggx.glass_alpha(), eta);
                 f += Rgb::splat(
                     glass * specular_brdf * dielectric_reflectance(c, eta) * compensation,
                 );
@@ -341,8 +341,7 @@ impl MetallicRoughness {
                 * (1.0 - dielectric_reflectance(c_o, eta))
                 * (c_i * c_o / (wi.z * wo.z * denominator * denominator)).abs()
                 / (eta * eta); // radiance is compressed into the denser side, as in dielectric.rs
-            let alpha = ggx.equivalent_alpha(); // of the albedo tables
-            glass * btdf * glass_energy_compensation(wo.z, alpha, eta) * self.base_color
+            glass * btdf * glass_energy_compensation(wo.z, ggx.glass_alpha(), eta) * self.base_color
         }
     }
 

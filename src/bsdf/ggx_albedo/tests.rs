@@ -19,6 +19,31 @@ pub(crate) fn albedo_quadrature(alpha: f32, mu: f32, nx: usize, nphi: usize) -> 
 
 /// [`albedo_quadrature`], the integrand weighted by Schlick's `(1 - wo.h)^5` when `schlick`.
 fn weighted_albedo_quadrature(alpha: f32, mu: f32, nx: usize, nphi: usize, schlick: bool) -> f64 {
+    normal_quadrature(alpha, mu, (nx, nphi), |wo, h, c| {
+        let wi = 2.0 * c * h - wo;
+        if wi.z <= 0.0 {
+            return 0.0;
+        }
+        // f wi.z dwi = D G2 / (4 wo.z) * 4 c dh = G2 c / (wo.z cos_theta) * (D cos_theta dh).
+        let weight = if schlick {
+            (1.0 - c.min(1.0) as f64).powi(5)
+        } else {
+            1.0
+        };
+        weight * (masking_shadowing(alpha, wo, wi) * c / wo.z) as f64
+    })
+}
+
+/// The midpoint quadrature over GGX normals of the albedo generators (see
+/// [`albedo_quadrature`]): the mean over the `nx x nphi` grid of `integrand(wo, h, wo.h)`
+/// (normals facing `wo` only, `wo` at cosine `mu`) divided by `cos theta_h` and times
+/// `dx / dv`. The integrand holds what one normal sends out, over `D cos(theta_h) dh`.
+pub(crate) fn normal_quadrature(
+    alpha: f32,
+    mu: f32,
+    (nx, nphi): (usize, usize),
+    mut integrand: impl FnMut(Vec3A, Vec3A, f32) -> f64,
+) -> f64 {
     let wo = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
     let mut total = 0.0f64;
     for i in 0..nx {
@@ -40,18 +65,7 @@ fn weighted_albedo_quadrature(alpha: f32, mu: f32, nx: usize, nphi: usize, schli
             if c <= 0.0 {
                 continue;
             }
-            let wi = 2.0 * c * h - wo;
-            if wi.z <= 0.0 {
-                continue;
-            }
-            // f wi.z dwi = D G2 / (4 wo.z) * 4 c dh = G2 c / (wo.z cos_theta) * (D cos_theta dh).
-            let weight = if schlick {
-                (1.0 - c.min(1.0) as f64).powi(5)
-            } else {
-                1.0
-            };
-            total +=
-                weight * (masking_shadowing(alpha, wo, wi) * c / wo.z) as f64 / cos_theta * dx_dv;
+            total += integrand(wo, h, c) / cos_theta * dx_dv;
         }
     }
     total / (nx * nphi) as f64

@@ -4,6 +4,7 @@
 
 use super::*;
 use crate::bsdf::dielectric::{FresnelModel, fresnel};
+use crate::bsdf::ggx_albedo::tests::normal_quadrature;
 use crate::bsdf::metallic_roughness::MetallicRoughness;
 use crate::bsdf::microfacet::{MIN_ALPHA, masking_shadowing, refract_about};
 use crate::math::rng::{path_key, uniform, uniform2};
@@ -23,42 +24,20 @@ pub(crate) fn glass_albedo_quadrature(
     nx: usize,
     nphi: usize,
 ) -> f64 {
-    let wo = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-    let mut total = 0.0f64;
-    for i in 0..nx {
-        let v = (i as f64 + 0.5) / nx as f64;
-        let one_minus_x = (1.0 - v).powi(4);
-        let x = 1.0 - one_minus_x;
-        let dx_dv = 4.0 * (1.0 - v).powi(3);
-        let tan_theta = alpha as f64 * (x / one_minus_x).sqrt();
-        let cos_theta = 1.0 / (1.0 + tan_theta * tan_theta).sqrt();
-        let sin_theta = tan_theta * cos_theta;
-        for j in 0..nphi {
-            let phi = (j as f64 + 0.5) / nphi as f64 * std::f64::consts::PI;
-            let h = Vec3A::new(
-                (sin_theta * phi.cos()) as f32,
-                (sin_theta * phi.sin()) as f32,
-                cos_theta as f32,
-            );
-            let c = wo.dot(h);
-            if c <= 0.0 {
-                continue;
-            }
-            let f = fresnel(c, eta, FresnelModel::Exact).0;
-            let reflected = 2.0 * c * h - wo;
-            let mut split = 0.0f32;
-            if reflected.z > 0.0 {
-                split += f * masking_shadowing(alpha, wo, reflected);
-            }
-            if let Some(transmitted) = refract_about(wo, h, eta)
-                && transmitted.z < 0.0
-            {
-                split += (1.0 - f) * masking_shadowing(alpha, wo, transmitted);
-            }
-            total += (split * c / wo.z) as f64 / cos_theta * dx_dv;
+    normal_quadrature(alpha, mu, (nx, nphi), |wo, h, c| {
+        let f = fresnel(c, eta, FresnelModel::Exact).0;
+        let reflected = 2.0 * c * h - wo;
+        let mut split = 0.0f32;
+        if reflected.z > 0.0 {
+            split += f * masking_shadowing(alpha, wo, reflected);
         }
-    }
-    total / (nx * nphi) as f64
+        if let Some(transmitted) = refract_about(wo, h, eta)
+            && transmitted.z < 0.0
+        {
+            split += (1.0 - f) * masking_shadowing(alpha, wo, transmitted);
+        }
+        (split * c / wo.z) as f64
+    })
 }
 
 /// The tables' node `(i, j, k)`: `mu = (i / 31)^2` (1e-4 for `i` = 0), `alpha = (j / 31)^2`

@@ -169,7 +169,7 @@ fn sample_weight_and_pdf_agree_with_eval_and_pdf() {
 /// The multiscatter compensation of rough glass `m` seen from `wo` (either side).
 fn glass_compensation(m: &MetallicRoughness, wo: Vec3A) -> f32 {
     let eta = if wo.z > 0.0 { m.ior } else { 1.0 / m.ior };
-    glass_energy_compensation(wo.z.abs(), m.alpha, eta)
+    glass_energy_compensation(wo.z.abs(), m.ggx().glass_alpha(), eta)
 }
 
 #[test]
