@@ -272,7 +272,7 @@ pub(super) fn shade_one<const THROUGH: bool>(
     }
     // A reflected ray leaves from the shadow rays' origin (the offset depends only on the
     // side of `ng` the ray leaves on).
-    *path.next_origin = if (ng.dot(wi) < 0.0) == !front {
+    *path.next_origin = if (ng.dot(wi) < 0.0) != front {
         front_origin
     } else {
         offset_ray_origin(p, p_error, ng, wi)
