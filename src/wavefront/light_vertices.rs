@@ -80,13 +80,13 @@ pub struct LightVertex {
 }
 
 /// A camera vertex as the connection needs it.
-pub(super) struct CameraVertex {
+pub(super) struct CameraVertex<'a> {
     pub(super) p: Vec3A,
     pub(super) ng: Vec3A,
     /// Whether the path arrived on the side `ng` points to.
     pub(super) front: bool,
     pub(super) frame: Frame,
-    pub(super) bsdf: Bsdf,
+    pub(super) bsdf: &'a Bsdf,
     pub(super) wo_local: Vec3A,
     /// The path's throughput arriving at the vertex.
     pub(super) throughput: Rgb,
@@ -110,7 +110,7 @@ pub(super) fn connect(
     scene: &RenderScene,
     light_vertices: &[LightVertex],
     pick: usize,
-    at: &CameraVertex,
+    at: &CameraVertex<'_>,
     max_depth: u32,
 ) -> Option<Connection> {
     let vertex = light_vertices.get(pick)?;

@@ -205,7 +205,7 @@ impl LightVertexGrid {
 pub(super) fn merge(
     scene: &RenderScene,
     (grid, vertices, light_paths): (&LightVertexGrid, &[LightVertex], u64),
-    at: &CameraVertex,
+    at: &CameraVertex<'_>,
     max_depth: u32,
 ) -> Rgb {
     let radius = grid.radius();

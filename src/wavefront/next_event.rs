@@ -47,7 +47,7 @@ impl NextEvent<'_> {
 
 /// The shading point as next-event estimation needs it.
 #[derive(Clone, Copy)]
-pub(super) struct ShadingPoint {
+pub(super) struct ShadingPoint<'a> {
     /// The hit point and the bound on its rounding error.
     pub(super) p: Vec3A,
     pub(super) p_error: Vec3A,
@@ -60,7 +60,7 @@ pub(super) struct ShadingPoint {
     /// The shading frame, the material (textures applied) and the direction back along the
     /// ray in that frame.
     pub(super) frame: Frame,
-    pub(super) bsdf: Bsdf,
+    pub(super) bsdf: &'a Bsdf,
     pub(super) wo_local: Vec3A,
 }
 
@@ -119,7 +119,7 @@ pub(super) fn sample_lights_front(
     scene: &RenderScene,
     params: &ShadeParams,
     key: u64,
-    at: &ShadingPoint,
+    at: &ShadingPoint<'_>,
     throughput: Rgb,
     next_event: NextEvent,
 ) {
@@ -135,7 +135,7 @@ pub(super) fn sample_lights_through(
     scene: &RenderScene,
     params: &ShadeParams,
     key: u64,
-    at: &ShadingPoint,
+    at: &ShadingPoint<'_>,
     media: Media,
     throughput: Rgb,
     next_event: NextEvent,
@@ -150,7 +150,7 @@ fn sample_lights<const THROUGH: bool>(
     scene: &RenderScene,
     params: &ShadeParams,
     key: u64,
-    at: &ShadingPoint,
+    at: &ShadingPoint<'_>,
     media: Media,
     throughput: Rgb,
     next_event: NextEvent,
@@ -313,7 +313,7 @@ mod tests {
         scene: &RenderScene,
         params: &ShadeParams,
         key: u64,
-        at: &ShadingPoint,
+        at: &ShadingPoint<'_>,
     ) -> Written {
         let mut shadows = ShadowBatch {
             per_path: params.shadow_rays as usize,
@@ -407,7 +407,7 @@ mod tests {
                         front,
                         front_origin: front_origin(p, p_error, ng, front),
                         frame,
-                        bsdf: *bsdf,
+                        bsdf,
                         wo_local: frame.to_local(wo),
                     };
                     let key = path_key(37, i, b as u32);

@@ -118,18 +118,19 @@ pub(super) fn shade_one<const THROUGH: bool>(
     // --- Material: textures applied; a surface that reflects nothing ends the path.
     let material = scene.material_of(slot) as usize;
     let width = path.cone.width_at(hit.t);
-    let (bsdf, ns) = surface::textured_surface_in_cone(
-        scene,
-        material,
-        slot,
-        hit.barycentric,
-        ng,
-        ns,
-        wo,
-        width,
-    );
+    // A material that nothing varies over the surface (no textures, no vertex colours: the
+    // common case) is borrowed from the scene, not copied: the BSDF value is large enough
+    // that each copy is a `memcpy` call.
+    let textured;
+    let (bsdf, ns) = if scene.material_textures[material].is_empty() && !scene.has_vertex_colors() {
+        (&scene.materials[material], ns)
+    } else {
+        let b = hit.barycentric;
+        textured = surface::textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, width);
+        (&textured.0, textured.1)
+    };
     if bsdf.is_black() {
-        if let Bsdf::Unlit { color } = bsdf {
+        if let Bsdf::Unlit { color } = *bsdf {
             // KHR_materials_unlit shows its colour to whatever ray hits it, in full (it is
             // no light: no shadow ray could have found it).
             *path.radiance += *path.throughput * color;
@@ -320,7 +321,7 @@ fn connect_light_vertex<const THROUGH: bool>(
     scene: &RenderScene,
     params: &ShadeParams,
     (key, bounce): (u64, u32),
-    at: &ShadingPoint,
+    at: &ShadingPoint<'_>,
     throughput: Rgb,
     media: Media,
     shadow: &mut ShadowSlots,
@@ -367,7 +368,7 @@ fn connect_light_vertex<const THROUGH: bool>(
 /// The shading point `at`, reached with `throughput` at `bounce`, as a connection or a merge
 /// needs it.
 #[inline(always)]
-fn camera_vertex(at: &ShadingPoint, throughput: Rgb, bounce: u32) -> CameraVertex {
+fn camera_vertex<'a>(at: &ShadingPoint<'a>, throughput: Rgb, bounce: u32) -> CameraVertex<'a> {
     CameraVertex {
         p: at.p,
         ng: at.ng,
