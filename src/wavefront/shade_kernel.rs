@@ -118,16 +118,16 @@ pub(super) fn shade_one<const THROUGH: bool>(
     // --- Material: textures applied; a surface that reflects nothing ends the path.
     let material = scene.material_of(slot) as usize;
     let width = path.cone.width_at(hit.t);
-    // A material that nothing varies over the surface (no textures, no vertex colours: the
-    // common case) is borrowed from the scene, not copied: the BSDF value is large enough
-    // that each copy is a `memcpy` call.
+    // Borrowed from the scene where nothing varies it over the surface (the common case).
     let textured;
-    let (bsdf, ns) = if scene.material_textures[material].is_empty() && !scene.has_vertex_colors() {
-        (&scene.materials[material], ns)
-    } else {
-        let b = hit.barycentric;
-        textured = surface::textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, width);
-        (&textured.0, textured.1)
+    let (bsdf, ns) = match surface::uniform_material(scene, material) {
+        Some(bsdf) => (bsdf, ns),
+        None => {
+            let b = hit.barycentric;
+            textured =
+                surface::textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, width);
+            (&textured.0, textured.1)
+        }
     };
     if bsdf.is_black() {
         if let Bsdf::Unlit { color } = *bsdf {

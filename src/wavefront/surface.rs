@@ -102,6 +102,16 @@ pub(super) fn textured_surface(
     textured_surface_in_cone(scene, material, slot, b, ng, ns, wo, 0.0)
 }
 
+/// The BSDF of `material`, borrowed from the scene, when nothing varies it over the surface
+/// (no textures, no vertex colours: what [`textured_surface_in_cone`] would return for every
+/// hit); `None` when that function must make it. The BSDF value is large enough that each
+/// copy is a `memcpy` call, which the shade stage saves for the common case.
+#[inline(always)]
+pub(super) fn uniform_material(scene: &RenderScene, material: usize) -> Option<&Bsdf> {
+    (scene.material_textures[material].is_empty() && !scene.has_vertex_colors())
+        .then(|| &scene.materials[material])
+}
+
 /// [`textured_surface`] for a ray whose cone is `cone_width` wide at the hit
 /// ([`crate::ray_cone::RayCone::width_at`]): colour, metallic-roughness and normal textures
 /// are read at the mipmap level of the cone's footprint; alpha (specular strength) at level 0.
