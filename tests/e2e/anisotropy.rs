@@ -30,23 +30,7 @@ fn furnace_doc(material: Value, uvs: bool, tangents: Option<[f32; 4]>) -> Value 
         attributes["TANGENT"] = json!(b.vec4s(&[t; 4]));
     }
     let quad_indices = b.indices(&[0, 1, 2, 0, 2, 3]);
-    let corners: Vec<[f32; 3]> = (0..8)
-        .map(|k| [4, 2, 1].map(|bit| if k & bit != 0 { 10.0 } else { -10.0 }))
-        .collect();
-    let cube = b.vec3s(&corners);
-    let faces = [
-        [0, 1, 3, 2],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 3, 7, 6],
-        [0, 2, 6, 4],
-        [1, 3, 7, 5],
-    ];
-    let cube_indices: Vec<u16> = faces
-        .iter()
-        .flat_map(|[a, b, c, d]| [*a, *b, *c, *a, *c, *d])
-        .collect();
-    let cube_indices = b.indices(&cube_indices);
+    let (cube, cube_indices) = b.furnace_box();
     let half = 15f32.to_radians(); // -30 degrees about x: looking along (0, -0.5, -0.866)
     b.into_doc(json!({
         "scenes": [{"nodes": [0, 1, 2]}],

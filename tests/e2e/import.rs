@@ -430,6 +430,28 @@ impl Buffer {
     }
 
     /// Puts the buffer, views and accessors into `doc` (buffer as a data URI).
+    /// The closed box of the furnace scenes, corners at +-10 (corner k has x, y, z = +-10 by
+    /// its bits 2, 1, 0), as two triangles per face: its (positions, indices) accessors.
+    pub(crate) fn furnace_box(&mut self) -> (usize, usize) {
+        let corners: Vec<[f32; 3]> = (0..8)
+            .map(|k| [4, 2, 1].map(|bit| if k & bit != 0 { 10.0 } else { -10.0 }))
+            .collect();
+        let cube = self.vec3s(&corners);
+        let faces = [
+            [0, 1, 3, 2],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [0, 2, 6, 4],
+            [1, 3, 7, 5],
+        ];
+        let indices: Vec<u16> = faces
+            .iter()
+            .flat_map(|[a, b, c, d]| [*a, *b, *c, *a, *c, *d])
+            .collect();
+        (cube, self.indices(&indices))
+    }
+
     pub(crate) fn into_doc(self, mut doc: Value) -> Value {
         doc["asset"] = json!({"version": "2.0"});
         doc["buffers"] = json!([{
@@ -1151,24 +1173,7 @@ fn layered_furnace_doc(material: Value) -> Value {
         [-1.0, 0.0, -1.0],
     ]);
     let quad_indices = b.indices(&[0, 1, 2, 0, 2, 3]);
-    // Corner k has x, y, z = +-10 by its bits 2, 1, 0.
-    let corners: Vec<[f32; 3]> = (0..8)
-        .map(|k| [4, 2, 1].map(|bit| if k & bit != 0 { 10.0 } else { -10.0 }))
-        .collect();
-    let cube = b.vec3s(&corners);
-    let faces = [
-        [0, 1, 3, 2],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 3, 7, 6],
-        [0, 2, 6, 4],
-        [1, 3, 7, 5],
-    ];
-    let cube_indices: Vec<u16> = faces
-        .iter()
-        .flat_map(|[a, b, c, d]| [*a, *b, *c, *a, *c, *d])
-        .collect();
-    let cube_indices = b.indices(&cube_indices);
+    let (cube, cube_indices) = b.furnace_box();
     let half = 15f32.to_radians(); // -30 degrees about x: looking along (0, -0.5, -0.866)
     b.into_doc(json!({
         "scenes": [{"nodes": [0, 1, 2]}],
