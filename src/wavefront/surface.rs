@@ -482,6 +482,27 @@ mod tests {
         path
     }
 
+    /// The material at the centroid of the quad of [`textured_quad`] (textures applied, `+z`
+    /// for every direction) with its shading normal, and the file's warnings. The bare model
+    /// is placed in the hexagonal room: the quad's slot is the one whose textures `reads`.
+    fn quad_surface(
+        dir: &std::path::Path,
+        material: &str,
+        images: &[image::RgbaImage],
+        reads: fn(&SurfaceTextures) -> bool,
+    ) -> ((Bsdf, Vec3A), Vec<String>) {
+        let path = textured_quad(dir, material, images);
+        let loaded = crate::load_scene(&path).unwrap();
+        let scene = crate::flatten(&loaded.world, &path).unwrap();
+        let slot = (scene.material.iter())
+            .position(|&m| reads(&scene.material_textures[m as usize]))
+            .expect("the quad's material reads its textures");
+        let material = scene.material[slot] as usize;
+        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
+        let surface = textured_surface(&scene, material, slot, b, z, z, z);
+        (surface, loaded.warnings)
+    }
+
     #[test]
     fn metallic_roughness_texture_is_linear_blue_metallic_green_roughness() {
         let dir = tempfile::tempdir().unwrap();
@@ -490,20 +511,9 @@ mod tests {
         let material = r#"{"pbrMetallicRoughness": {"metallicFactor": 1.0,
             "roughnessFactor": 1.0, "metallicRoughnessTexture": {"index": 0}}}"#;
         let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([0, 128, 64, 255]));
-        let path = textured_quad(dir.path(), material, &[texel]);
-        let scene = crate::load_scene(&path).unwrap();
-        let scene = crate::flatten(&scene.world, &path).unwrap();
-        // (The bare model is placed in the hexagonal room: find the quad's slot.)
-        let slot = (scene.material.iter())
-            .position(|&m| {
-                scene.material_textures[m as usize]
-                    .metallic_roughness
-                    .is_set()
-            })
-            .expect("the quad's material reads the texture");
-        let material = scene.material[slot] as usize;
-        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
-        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let ((bsdf, _), _) = quad_surface(dir.path(), material, &[texel], |t| {
+            t.metallic_roughness.is_set()
+        });
         let Bsdf::MetallicRoughness(MetallicRoughness {
             metallic, alpha, ..
         }) = bsdf
@@ -535,20 +545,16 @@ mod tests {
                 "iridescenceThicknessMaximum": 600.0, "iridescenceTexture": {"index": 0},
                 "iridescenceThicknessTexture": {"index": 0}}}}"#;
         let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 64, 10, 255]));
-        let path = textured_quad(dir.path(), material, &[texel]);
-        let loaded = crate::load_scene(&path).unwrap();
-        assert!(
-            !loaded.warnings.iter().any(|w| w.contains("iridescence")),
-            "{:?}",
-            loaded.warnings
+        let ((bsdf, _), warnings) = quad_surface(
+            dir.path(),
+            material,
+            &[texel],
+            SurfaceTextures::has_film_textures,
         );
-        let scene = crate::flatten(&loaded.world, &path).unwrap();
-        let slot = (scene.material.iter())
-            .position(|&m| scene.material_textures[m as usize].has_film_textures())
-            .expect("the quad's material reads the film's textures");
-        let material = scene.material[slot] as usize;
-        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
-        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        assert!(
+            !warnings.iter().any(|w| w.contains("iridescence")),
+            "{warnings:?}"
+        );
         let Bsdf::MetallicRoughness(params) = bsdf else {
             panic!("{bsdf:?}")
         };
@@ -577,24 +583,14 @@ mod tests {
             "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
                 "clearcoatNormalTexture": {"index": 0, "scale": 0.5}}}}"#;
         let surface = |material: &str| {
-            let path = textured_quad(dir.path(), material, std::slice::from_ref(&texel));
-            let loaded = crate::load_scene(&path).unwrap();
+            let images = std::slice::from_ref(&texel);
+            let ((bsdf, shading), warnings) = quad_surface(dir.path(), material, images, |t| {
+                t.clearcoat_normal.is_set()
+            });
             assert!(
-                !loaded.warnings.iter().any(|w| w.contains("clearcoat")),
-                "{:?}",
-                loaded.warnings
+                !warnings.iter().any(|w| w.contains("clearcoat")),
+                "{warnings:?}"
             );
-            let scene = crate::flatten(&loaded.world, &path).unwrap();
-            let slot = (scene.material.iter())
-                .position(|&m| {
-                    scene.material_textures[m as usize]
-                        .clearcoat_normal
-                        .is_set()
-                })
-                .expect("the quad's material reads the coat's normal map");
-            let material = scene.material[slot] as usize;
-            let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
-            let (bsdf, shading) = textured_surface(&scene, material, slot, b, z, z, z);
             let Bsdf::Layered(layered) = bsdf else {
                 panic!("{bsdf:?}")
             };
@@ -627,23 +623,18 @@ mod tests {
                     "sheenRoughnessFactor": 1.0, "sheenColorTexture": {"index": 0},
                     "sheenRoughnessTexture": {"index": 0}}}}"#;
         let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([128, 64, 188, 51]));
-        let path = textured_quad(dir.path(), material, &[texel]);
-        let loaded = crate::load_scene(&path).unwrap();
+        let ((bsdf, _), warnings) = quad_surface(
+            dir.path(),
+            material,
+            &[texel],
+            SurfaceTextures::has_layer_textures,
+        );
         assert!(
-            !loaded
-                .warnings
+            !warnings
                 .iter()
                 .any(|w| w.contains("sheen") || w.contains("clearcoat")),
-            "{:?}",
-            loaded.warnings
+            "{warnings:?}"
         );
-        let scene = crate::flatten(&loaded.world, &path).unwrap();
-        let slot = (scene.material.iter())
-            .position(|&m| scene.material_textures[m as usize].has_layer_textures())
-            .expect("the quad's material reads the layer textures");
-        let material = scene.material[slot] as usize;
-        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
-        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
         let Bsdf::Layered(layered) = bsdf else {
             panic!("{bsdf:?}")
         };
@@ -672,16 +663,9 @@ mod tests {
                 "specularTexture": {"index": 0}, "specularColorTexture": {"index": 1}}}}"#;
         let strength = image::RgbaImage::from_pixel(1, 1, image::Rgba([9, 9, 9, 128]));
         let colour = image::RgbaImage::from_pixel(1, 1, image::Rgba([188, 255, 0, 255]));
-        let path = textured_quad(dir.path(), material, &[strength, colour]);
-        let scene = crate::load_scene(&path).unwrap();
-        let scene = crate::flatten(&scene.world, &path).unwrap();
-        let slot = (scene.material.iter())
-            .position(|&m| scene.material_textures[m as usize].specular.is_set())
-            .expect("the quad's material reads the specular texture");
-        let material = scene.material[slot] as usize;
-        assert!(scene.material_textures[material].specular_color.is_set());
-        let (z, b) = (Vec3A::Z, Vec2::splat(1.0 / 3.0));
-        let (bsdf, _) = textured_surface(&scene, material, slot, b, z, z, z);
+        let ((bsdf, _), _) = quad_surface(dir.path(), material, &[strength, colour], |t| {
+            t.specular.is_set() && t.specular_color.is_set()
+        });
         let Bsdf::MetallicRoughness(MetallicRoughness {
             specular,
             specular_color,
